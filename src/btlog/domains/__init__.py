@@ -1,0 +1,1 @@
+"""Simulated domains from the paper: the kitting task and the Taxi domain."""

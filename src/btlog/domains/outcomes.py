@@ -1,0 +1,263 @@
+"""Scripted leaves: run any tree without code, from an outcomes file.
+
+An outcomes file (YAML or JSON) says what each leaf does on each activation (each start
+from IDLE, counted per node)::
+
+    default: {status: SUCCESS, duration: 0.5}   # seconds RUNNING before the result
+    nodes:
+      "look at chuck": [FAILURE, SUCCESS]       # per activation; the last entry repeats
+      "detect chuck": [{status: FAILURE, duration: 1.0}, SUCCESS]
+      "check grasped": {status: SUCCESS, ticks: 3}   # RUNNING ticks instead of seconds
+
+Keys are a node's name, its type for nameless nodes, or its path. ``--fail "look at
+chuck@2"`` fails that node's second activation; a failure rate fails each activation with
+that probability, drawn from the run's seeded random generator. A scripted leaf behaves
+as BT.CPP's StatefulActionNode; a condition with no RUNNING time completes in its tick.
+"""
+
+from __future__ import annotations
+
+import json
+import random
+from collections.abc import Callable
+from dataclasses import dataclass, field, replace
+from pathlib import Path
+from typing import Any
+
+import yaml
+
+from btlog.executor.actions import StatefulAction
+from btlog.executor.blackboard import Blackboard
+from btlog.executor.engine import Runtime
+from btlog.status import FAILURE, RUNNING, SUCCESS, Status
+from btlog.tree.model import CONDITION, Node, Tree
+
+DEFAULT_ACTION = {"status": "SUCCESS", "duration": 0.5}
+
+
+class OutcomesError(ValueError):
+    """An outcomes file or --fail spec that cannot be used; one line naming what is wrong."""
+
+
+@dataclass(frozen=True)
+class Outcome:
+    """One activation's script: the result, after ``duration_ns`` or ``ticks`` RUNNING."""
+
+    status: Status = SUCCESS
+    duration_ns: int = 0
+    ticks: int | None = None
+
+
+@dataclass(frozen=True)
+class FailSpec:
+    """``--fail KEY[@N]``: fail activation N (default 1) of the nodes matching KEY."""
+
+    key: str
+    activation: int = 1
+
+    @classmethod
+    def parse(cls, text: str) -> FailSpec:
+        """Parse ``KEY`` or ``KEY@N``."""
+        key, at, number = text.rpartition("@")
+        if at and number.isdigit() and key:
+            if int(number) < 1:
+                raise OutcomesError(f"--fail {text!r}: activations count from 1")
+            return cls(key, int(number))
+        if not text.strip():
+            raise OutcomesError("--fail needs a node name")
+        return cls(text)
+
+    def __str__(self) -> str:
+        return self.key if self.activation == 1 else f"{self.key}@{self.activation}"
+
+
+def _parse_entry(value: Any, base: Outcome, where: str) -> Outcome:
+    if isinstance(value, str):
+        return replace(base, status=_status(value, where))
+    if not isinstance(value, dict):
+        raise OutcomesError(f"{where}: expected a status or a mapping, got {value!r}")
+    unknown = set(value) - {"status", "duration", "ticks"}
+    if unknown:
+        raise OutcomesError(f"{where}: unknown field {sorted(unknown)[0]!r}")
+    outcome = base
+    if "status" in value:
+        outcome = replace(outcome, status=_status(value["status"], where))
+    if "duration" in value:
+        duration = value["duration"]
+        if not isinstance(duration, int | float) or isinstance(duration, bool) or duration < 0:
+            raise OutcomesError(f"{where}: duration must be a number of seconds >= 0, "
+                                f"got {duration!r}")
+        outcome = replace(outcome, duration_ns=round(duration * 1e9), ticks=None)
+    if "ticks" in value:
+        ticks = value["ticks"]
+        if not isinstance(ticks, int) or isinstance(ticks, bool) or ticks < 0:
+            raise OutcomesError(f"{where}: ticks must be a whole number >= 0, got {ticks!r}")
+        outcome = replace(outcome, ticks=ticks, duration_ns=0)
+    return outcome
+
+
+def _status(value: Any, where: str) -> Status:
+    if isinstance(value, str) and value.strip().upper() in ("SUCCESS", "FAILURE", "RUNNING"):
+        status = Status[value.strip().upper()]
+        if status is RUNNING:
+            raise OutcomesError(f"{where}: RUNNING is not a result; use duration or ticks")
+        return status
+    raise OutcomesError(f"{where}: status must be SUCCESS or FAILURE, got {value!r}")
+
+
+@dataclass
+class Outcomes:
+    """A parsed outcomes file: the default, the per-key scripts, and failure overrides."""
+
+    default: Outcome = field(default_factory=lambda: _parse_entry(DEFAULT_ACTION, Outcome(),
+                                                                    "default"))
+    condition_default: Outcome = field(default_factory=Outcome)
+    scripts: dict[str, list[Outcome]] = field(default_factory=dict)
+    failures: list[FailSpec] = field(default_factory=list)
+    failure_rate: float = 0.0
+    source: dict = field(default_factory=dict)
+
+    @classmethod
+    def from_mapping(cls, data: Any, where: str = "outcomes") -> Outcomes:
+        """Build from the mapping of an outcomes file."""
+        if data is None:
+            data = {}
+        if not isinstance(data, dict):
+            raise OutcomesError(f"{where}: the top level must be a mapping")
+        unknown = set(data) - {"default", "nodes"}
+        if unknown:
+            raise OutcomesError(f"{where}: unknown key {sorted(unknown)[0]!r} "
+                                "(expected default and nodes)")
+        outcomes = cls(source=data)
+        if "default" in data:
+            outcomes.default = _parse_entry(data["default"], Outcome(), f"{where}: default")
+            outcomes.condition_default = outcomes.default
+        nodes = data.get("nodes") or {}
+        if not isinstance(nodes, dict):
+            raise OutcomesError(f"{where}: nodes must be a mapping of node keys")
+        for key, value in nodes.items():
+            entries = value if isinstance(value, list) else [value]
+            if not entries:
+                raise OutcomesError(f"{where}: {key!r} has an empty list")
+            outcomes.scripts[str(key)] = [
+                _parse_entry(entry, outcomes.default, f"{where}: {key!r}[{i}]")
+                for i, entry in enumerate(entries)]
+        return outcomes
+
+    @classmethod
+    def load(cls, path: str | Path) -> Outcomes:
+        """Read an outcomes file (YAML or JSON)."""
+        try:
+            text = Path(path).read_text(encoding="utf-8")
+        except (OSError, UnicodeDecodeError) as error:
+            raise OutcomesError(f"{path}: cannot read the outcomes file: {error}") from None
+        try:
+            data = json.loads(text) if str(path).endswith(".json") else yaml.safe_load(text)
+        except (json.JSONDecodeError, yaml.YAMLError) as error:
+            mark = getattr(error, "problem_mark", None)
+            line = f":{mark.line + 1}" if mark is not None else ""
+            raise OutcomesError(f"{path}{line}: not valid YAML/JSON: "
+                                f"{str(error).splitlines()[0]}") from None
+        return cls.from_mapping(data, str(path))
+
+    def check_keys(self, tree: Tree) -> None:
+        """Every key and --fail key must match at least one node of the tree."""
+        for key in [*self.scripts, *(f.key for f in self.failures)]:
+            if not tree.find(key):
+                raise OutcomesError(f"outcomes key {key!r} matches no node of the tree")
+
+    def plan_for(self, node: Node, tree: Tree) -> list[Outcome]:
+        """The per-activation script of a node (the last entry repeats)."""
+        for key in (node.path, node.name, None if node.name else node.type):
+            if key and key in self.scripts and node in tree.find(key):
+                return self.scripts[key]
+        return [self.condition_default if node.kind == CONDITION else self.default]
+
+    def forced_failures(self, node: Node, tree: Tree) -> set[int]:
+        """Activations of ``node`` that --fail makes fail."""
+        return {f.activation for f in self.failures if node in tree.find(f.key)}
+
+
+Effect = Callable[["ScriptedLeaf", Status], Status]
+
+
+class ScriptedLeaf(StatefulAction):
+    """A leaf driven by its outcomes: RUNNING for the scripted time, then the result.
+
+    ``effect`` (from a simulated domain) runs at completion; it may write outputs and
+    may change the result.
+    """
+
+    def __init__(self, node: Node, runtime: Runtime, board: Blackboard, plan: list[Outcome],
+                 forced: set[int], rng: random.Random | None, failure_rate: float,
+                 effect: Effect | None = None) -> None:
+        super().__init__(node, runtime, board)
+        self.kind = node.kind
+        self.plan = plan
+        self.forced = forced
+        self.rng = rng
+        self.failure_rate = failure_rate
+        self.effect = effect
+        self.activations = 0
+        self.outcome = plan[0]
+        self.remaining = 0
+        self.deadline = 0
+
+    def on_start(self) -> Status:
+        self.activations += 1
+        outcome = self.plan[min(self.activations, len(self.plan)) - 1]
+        if self.activations in self.forced or (
+                self.failure_rate > 0 and self.rng is not None
+                and self.rng.random() < self.failure_rate):
+            outcome = replace(outcome, status=FAILURE)
+        self.outcome = outcome
+        if outcome.ticks:
+            self.remaining = outcome.ticks
+            return RUNNING
+        if outcome.duration_ns > 0:
+            self.deadline = self.runtime.clock.now_ns() + outcome.duration_ns
+            return RUNNING
+        return self._complete()
+
+    def on_running(self) -> Status:
+        if self.outcome.ticks:
+            self.remaining -= 1
+            if self.remaining <= 0:
+                return self._complete()
+            return RUNNING
+        if self.runtime.clock.now_ns() >= self.deadline:
+            return self._complete()
+        return RUNNING
+
+    def _complete(self) -> Status:
+        status = self.outcome.status
+        if self.effect is not None:
+            status = self.effect(self, status)
+        return status
+
+
+def scripted_leaf_factory(tree: Tree, outcomes: Outcomes, seed: int | None = None,
+                          effects: Callable[[Node], Effect | None] | None = None,
+                          durations: Callable[[Node], Outcome | None] | None = None):
+    """A ``leaf_factory`` for the executor building ``ScriptedLeaf``s from ``outcomes``.
+
+    ``durations`` lets a domain give per-type defaults where the outcomes say nothing.
+    """
+    rng = random.Random(seed) if outcomes.failure_rate > 0 else None
+
+    def factory(node: Node, runtime: Runtime, board: Blackboard) -> ScriptedLeaf:
+        plan = outcomes.plan_for(node, tree)
+        if durations is not None and plan[0] in (outcomes.default, outcomes.condition_default):
+            domain_default = durations(node)
+            if domain_default is not None and not _has_explicit_script(node, tree, outcomes):
+                plan = [domain_default]
+        return ScriptedLeaf(node, runtime, board, plan, outcomes.forced_failures(node, tree),
+                            rng, outcomes.failure_rate,
+                            effects(node) if effects is not None else None)
+
+    return factory
+
+
+def _has_explicit_script(node: Node, tree: Tree, outcomes: Outcomes) -> bool:
+    return any(key in outcomes.scripts and node in tree.find(key)
+               for key in (node.path, node.name, node.type) if key)

@@ -1,0 +1,131 @@
+"""Events: the immutable facts a run is made of.
+
+A run is the sequence of its events, numbered by a global, gap-free ``seq`` from 0 and
+stamped with ``t_ns`` since the run started and the ``tick`` they happened in:
+
+- ``StatusChange``: a node's status changed (IDLE resets included), as BT.CPP's loggers
+  see it;
+- ``BlackboardWrite``: an entry was written (or removed: ``type == "unset"``) by a node;
+- ``TreeMutation``: the tree itself changed (a subtree inserted while running).
+
+``TickRecord`` summarises one root tick. Everything else — the state at a moment, the
+read model in DuckDB, the answers to questions — is a projection folded from these.
+
+The executor delivers events to a ``Subscriber`` as positional fields (no object per
+event on the hot path); ``EventLog`` is a subscriber that keeps them as records.
+"""
+
+from __future__ import annotations
+
+from typing import Any, NamedTuple
+
+from btlog.status import Status
+
+
+class StatusChange(NamedTuple):
+    """Node ``uid`` went from ``prev`` to ``status``."""
+
+    seq: int
+    t_ns: int
+    tick: int
+    uid: int
+    prev: Status
+    status: Status
+
+
+class BlackboardWrite(NamedTuple):
+    """Entry ``key`` of scope ``scope`` was set to ``value`` by node ``writer_uid``."""
+
+    seq: int
+    t_ns: int
+    tick: int
+    scope: str
+    key: str
+    value: Any
+    type: str
+    writer_uid: int | None
+
+
+class TreeMutation(NamedTuple):
+    """The tree changed: ``nodes`` (records with fresh uids) inserted under ``parent_uid``
+    right after ``after_uid``, because of ``question``."""
+
+    seq: int
+    t_ns: int
+    tick: int
+    op: str
+    parent_uid: int
+    after_uid: int | None
+    nodes: list[dict]
+    question: str
+
+    @property
+    def inserted_root_uid(self) -> int:
+        """The uid of the inserted subtree's root."""
+        return self.nodes[0]["uid"]
+
+
+class TickRecord(NamedTuple):
+    """Root tick ``tick`` ran from ``start_ns`` to ``end_ns`` and returned ``root_status``."""
+
+    tick: int
+    start_ns: int
+    end_ns: int
+    root_status: Status
+
+
+Event = StatusChange | BlackboardWrite | TreeMutation
+
+
+class Subscriber:
+    """Receives a run's events in execution order. Override what you need."""
+
+    def on_status(self, seq: int, t_ns: int, tick: int, uid: int, prev: Status,
+                  status: Status) -> None:
+        """A status change."""
+
+    def on_write(self, seq: int, t_ns: int, tick: int, scope: str, key: str, value: Any,
+                 type_name: str, writer_uid: int | None) -> None:
+        """A blackboard write (``type_name == "unset"`` for a removal)."""
+
+    def on_mutation(self, mutation: TreeMutation) -> None:
+        """A change of the tree."""
+
+    def on_tick(self, record: TickRecord) -> None:
+        """The end of a root tick."""
+
+    def on_close(self) -> None:
+        """The run is over (or stopped); flush what is buffered."""
+
+
+class EventLog(Subscriber):
+    """A subscriber that keeps every event and tick as records, in order."""
+
+    def __init__(self) -> None:
+        self.events: list[Event] = []
+        self.ticks: list[TickRecord] = []
+
+    def on_status(self, seq, t_ns, tick, uid, prev, status) -> None:
+        self.events.append(StatusChange(seq, t_ns, tick, uid, prev, status))
+
+    def on_write(self, seq, t_ns, tick, scope, key, value, type_name, writer_uid) -> None:
+        self.events.append(BlackboardWrite(seq, t_ns, tick, scope, key, value, type_name,
+                                           writer_uid))
+
+    def on_mutation(self, mutation: TreeMutation) -> None:
+        self.events.append(mutation)
+
+    def on_tick(self, record: TickRecord) -> None:
+        self.ticks.append(record)
+
+    @property
+    def transitions(self) -> list[StatusChange]:
+        """Only the status changes."""
+        return [e for e in self.events if isinstance(e, StatusChange)]
+
+
+def type_name(value: Any) -> str:
+    """The recorded type of a blackboard value."""
+    if value is None:
+        return "null"
+    return type(value).__name__

@@ -1,0 +1,107 @@
+"""The blackboard: key–value entries in scopes, one scope per subtree instance.
+
+As in BT.CPP v4, every SubTree gets its own blackboard. A key remapped by the SubTree
+(``port="{outer}"``) reads and writes the parent's entry ``outer``; with ``_autoremap``
+any key that is not private (``_key``) and not local resolves in the parent; ``@key``
+always means the root blackboard. Every write is reported, with the scope that really
+holds the entry and the node that wrote it, to the executor's event feed.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Callable
+from typing import Any
+
+#: Marks a removed entry in the write feed (UnsetBlackboard).
+UNSET = object()
+
+WriteSink = Callable[[str, str, Any, int | None], None]
+
+
+class Blackboard:
+    """One scope of entries; ``scope`` is the subtree path ("" for the main tree)."""
+
+    def __init__(self, scope: str = "", parent: Blackboard | None = None,
+                 remap: dict[str, str] | None = None, autoremap: bool = False) -> None:
+        self.scope = scope
+        self.parent = parent
+        self.remap = remap or {}
+        self.autoremap = autoremap
+        self.entries: dict[str, Any] = {}
+        self.on_write: WriteSink | None = None
+        self.root: Blackboard = self if parent is None else parent.root
+
+    def _resolve(self, key: str) -> tuple[Blackboard, str, bool]:
+        """Follow ``@``, remaps and autoremap: the board and key that hold ``key``, and
+        whether the entry exists (if not, the board is where BT.CPP would create it)."""
+        board = self
+        while True:
+            if key.startswith("@"):
+                board, key = board.root, key[1:]
+            if key in board.entries:
+                return board, key, True
+            if key in board.remap and board.parent is not None:
+                key, board = board.remap[key], board.parent
+            elif board.autoremap and board.parent is not None and not key.startswith("_"):
+                board = board.parent
+            else:
+                return board, key, False
+
+    def exists(self, key: str) -> bool:
+        """True when the key resolves to an entry."""
+        return self._resolve(key)[2]
+
+    def get(self, key: str) -> Any:
+        """The value of ``key``; KeyError when it does not exist."""
+        board, resolved, found = self._resolve(key)
+        if not found:
+            raise KeyError(key)
+        return board.entries[resolved]
+
+    def set(self, key: str, value: Any, writer: int | None = None) -> None:
+        """Write ``key`` (creating it where BT.CPP would) and report the write."""
+        board, resolved, _ = self._resolve(key)
+        board.entries[resolved] = value
+        sink = self.root.on_write
+        if sink is not None:
+            sink(board.scope, resolved, value, writer)
+
+    def unset(self, key: str, writer: int | None = None) -> None:
+        """Remove ``key`` if it exists, and report the removal."""
+        board, resolved, found = self._resolve(key)
+        if not found:
+            return
+        del board.entries[resolved]
+        sink = self.root.on_write
+        if sink is not None:
+            sink(board.scope, resolved, UNSET, writer)
+
+    def view(self, writer: int | None) -> BoundBlackboard:
+        """This blackboard as a node sees it (writes are reported with the node's uid)."""
+        return BoundBlackboard(self, writer)
+
+
+class BoundBlackboard:
+    """A blackboard seen by one node: the script environment and the leaves' view."""
+
+    __slots__ = ("board", "writer")
+
+    def __init__(self, board: Blackboard, writer: int | None) -> None:
+        self.board = board
+        self.writer = writer
+
+    def get(self, key: str) -> Any:
+        """The value of ``key`` (KeyError when missing)."""
+        return self.board.get(key)
+
+    def exists(self, key: str) -> bool:
+        """True when ``key`` resolves to an entry."""
+        return self.board.exists(key)
+
+    def set(self, key: str, value: Any) -> None:
+        """Write ``key`` as this node."""
+        self.board.set(key, value, self.writer)
+
+    def unset(self, key: str) -> None:
+        """Remove ``key`` as this node."""
+        self.board.unset(key, self.writer)

@@ -1,0 +1,254 @@
+"""Decorators (and SubTree), each with BehaviorTree.CPP v4's exact policy.
+
+A decorator has one child and changes what its result means. BT.CPP's DecoratorNode
+resets the child after every tick in which the child completed, which is why a retried
+child is seen going FAILURE→IDLE before it starts again. RetryUntilSuccessful and Repeat
+loop within one tick while their child completes synchronously; when the child had been
+IDLE they instead signal a wake-up and return RUNNING, and the executor re-ticks the root.
+"""
+
+from __future__ import annotations
+
+from btlog.executor.behavior import Behavior, DecoratorBehavior
+from btlog.executor.script import compile_script, truthy
+from btlog.status import FAILURE, IDLE, RUNNING, SKIPPED, SUCCESS, Status
+
+
+class Inverter(DecoratorBehavior):
+    """SUCCESS becomes FAILURE and FAILURE becomes SUCCESS; RUNNING and SKIPPED pass."""
+
+    def tick(self) -> Status:
+        self.set_status(RUNNING)
+        result = self.child.execute_tick()
+        if result is SUCCESS:
+            self.reset_child()
+            return FAILURE
+        if result is FAILURE:
+            self.reset_child()
+            return SUCCESS
+        return result
+
+
+class ForceSuccess(DecoratorBehavior):
+    """A completed child gives SUCCESS; RUNNING and SKIPPED pass."""
+
+    forced = SUCCESS
+
+    def tick(self) -> Status:
+        self.set_status(RUNNING)
+        result = self.child.execute_tick()
+        if result is SUCCESS or result is FAILURE:
+            self.reset_child()
+            return self.forced
+        return result
+
+
+class ForceFailure(ForceSuccess):
+    """A completed child gives FAILURE; RUNNING and SKIPPED pass."""
+
+    forced = FAILURE
+
+
+class KeepRunningUntilFailure(DecoratorBehavior):
+    """SUCCESS resets the child and returns RUNNING; FAILURE fails."""
+
+    def tick(self) -> Status:
+        self.set_status(RUNNING)
+        result = self.child.execute_tick()
+        if result is FAILURE:
+            self.reset_child()
+            return FAILURE
+        if result is SUCCESS:
+            self.reset_child()
+            return RUNNING
+        if result is RUNNING:
+            return RUNNING
+        return self.status
+
+
+class _Loop(DecoratorBehavior):
+    """Shared loop of Repeat and RetryUntilSuccessful: re-tick the child within the same
+    tick while it completes with ``again``, up to the port's limit (-1: no limit)."""
+
+    limit_port: str
+    again: Status
+
+    def __init__(self, *args) -> None:
+        super().__init__(*args)
+        self.count = 0
+
+    def tick(self) -> Status:
+        limit = self.get_input(self.limit_port, "int")
+        loop = self.count < limit or limit == -1
+        self.set_status(RUNNING)
+        while loop:
+            child = self.child
+            before = child.status
+            result = child.execute_tick()
+            if result is self.again:
+                self.count += 1
+                limit = self.get_input(self.limit_port, "int")
+                loop = self.count < limit or limit == -1
+                self.reset_child()
+                if before is IDLE and loop:
+                    self.runtime.wake_up = True
+                    return RUNNING
+            elif result is RUNNING:
+                return RUNNING
+            elif result is SKIPPED:
+                self.reset_child()
+                return SKIPPED
+            else:
+                self.count = 0
+                self.reset_child()
+                return result
+        self.count = 0
+        return SUCCESS if self.again is SUCCESS else FAILURE
+
+    def halt(self) -> None:
+        self.count = 0
+        super().halt()
+
+
+class Repeat(_Loop):
+    """Run the child ``num_cycles`` times (-1: forever) while it succeeds; FAILURE fails."""
+
+    limit_port = "num_cycles"
+    again = SUCCESS
+
+
+class RetryUntilSuccessful(_Loop):
+    """Retry the child up to ``num_attempts`` times (-1: forever) while it fails; SUCCESS
+    succeeds. ``count`` is the number of failed attempts of the current run."""
+
+    limit_port = "num_attempts"
+    again = FAILURE
+
+
+class RunOnce(DecoratorBehavior):
+    """Tick the child until it completes once; afterwards return SKIPPED (``then_skip``)
+    or the remembered result, without ticking it again. Halting does not forget."""
+
+    def __init__(self, *args) -> None:
+        super().__init__(*args)
+        self.done: Status | None = None
+
+    def tick(self) -> Status:
+        then_skip = self.get_input("then_skip", "bool") if self.has_port("then_skip") else True
+        if self.done is not None:
+            return SKIPPED if then_skip else self.done
+        self.set_status(RUNNING)
+        result = self.child.execute_tick()
+        if result is SUCCESS or result is FAILURE:
+            self.done = result
+            self.reset_child()
+        return result
+
+
+class Precondition(DecoratorBehavior):
+    """While the child is not running, evaluate ``if``: false returns ``else`` (default
+    FAILURE) without ticking the child."""
+
+    def __init__(self, *args) -> None:
+        super().__init__(*args)
+        self.children_running = False
+        self._script = compile_script(self.node.ports["if"].value) \
+            if "if" in self.node.ports else None
+
+    def tick(self) -> Status:
+        otherwise = self.get_input("else", "status")
+        if self._script is None:
+            return otherwise
+        if not self.children_running:
+            self.children_running = truthy(self._run_script(self._script))
+        if not self.children_running:
+            return otherwise
+        result = self.child.execute_tick()
+        if result is SUCCESS or result is FAILURE:
+            self.reset_child()
+            self.children_running = False
+        return result
+
+    def halt(self) -> None:
+        self.children_running = False
+        super().halt()
+
+
+class Delay(DecoratorBehavior):
+    """RUNNING for ``delay_msec`` (on the executor's clock), then tick the child."""
+
+    def __init__(self, *args) -> None:
+        super().__init__(*args)
+        self.deadline: int | None = None
+
+    def tick(self) -> Status:
+        clock = self.runtime.clock
+        if self.deadline is None:
+            self.deadline = clock.now_ns() + self.get_input("delay_msec", "int") * 1_000_000
+            self.set_status(RUNNING)
+        if clock.now_ns() < self.deadline:
+            return RUNNING
+        result = self.child.execute_tick()
+        if result is SUCCESS or result is FAILURE:
+            self.deadline = None
+            self.reset_child()
+        return result
+
+    def halt(self) -> None:
+        self.deadline = None
+        super().halt()
+
+
+class Timeout(DecoratorBehavior):
+    """Tick the child; if it is still running ``msec`` after the start, halt it and fail."""
+
+    def __init__(self, *args) -> None:
+        super().__init__(*args)
+        self.deadline: int | None = None
+
+    def tick(self) -> Status:
+        clock = self.runtime.clock
+        if self.deadline is None:
+            self.deadline = clock.now_ns() + self.get_input("msec", "int") * 1_000_000
+            self.set_status(RUNNING)
+        elif clock.now_ns() >= self.deadline:
+            self.deadline = None
+            self.reset_child()
+            return FAILURE
+        result = self.child.execute_tick()
+        if result is not RUNNING:
+            self.deadline = None
+            self.reset_child()
+        return result
+
+    def halt(self) -> None:
+        self.deadline = None
+        super().halt()
+
+
+class SubTree(DecoratorBehavior):
+    """Tick the subtree's root; RUNNING is set only when starting from IDLE, and the
+    SubTree node keeps its result until its parent resets it."""
+
+    def tick(self) -> Status:
+        if self.status is IDLE:
+            self.set_status(RUNNING)
+        result = self.child.execute_tick()
+        if result is SUCCESS or result is FAILURE:
+            self.reset_child()
+        return result
+
+
+DECORATORS: dict[str, type[Behavior]] = {
+    "Inverter": Inverter,
+    "ForceSuccess": ForceSuccess,
+    "ForceFailure": ForceFailure,
+    "KeepRunningUntilFailure": KeepRunningUntilFailure,
+    "Repeat": Repeat,
+    "RetryUntilSuccessful": RetryUntilSuccessful,
+    "RunOnce": RunOnce,
+    "Precondition": Precondition,
+    "Delay": Delay,
+    "Timeout": Timeout,
+    "SubTree": SubTree,
+}

@@ -1,0 +1,259 @@
+"""The executor: builds behaviours from a tree, ticks the root, and feeds subscribers.
+
+One ``tick()`` is BT.CPP's ``tickOnce``: the root is ticked, ticked again at once while a
+node signalled a wake-up and the root is still RUNNING, and reset after it completes.
+Every status change, blackboard write and tree mutation gets the next ``seq`` and the
+clock's time and is delivered, in execution order, to each subscriber. With no
+subscriber the nodes find ``emit_status`` empty and pay nothing more.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Callable, Iterable
+from typing import Any
+
+from btlog.events import Subscriber, TickRecord, TreeMutation, type_name
+from btlog.executor.actions import ACTIONS
+from btlog.executor.behavior import Behavior, ControlBehavior, NodeExecutionError
+from btlog.executor.blackboard import UNSET, Blackboard
+from btlog.executor.clock import SimClock, WallClock
+from btlog.executor.controls import CONTROLS
+from btlog.executor.decorators import DECORATORS
+from btlog.executor.ports import parse_literal
+from btlog.status import FAILURE, IDLE, RUNNING, SUCCESS, Status
+from btlog.tree.model import SUBTREE, Node, Tree, blackboard_key
+from btlog.tree.registry import Registry
+
+BUILTIN_BEHAVIORS: dict[str, type[Behavior]] = {**CONTROLS, **DECORATORS, **ACTIONS}
+
+#: Builds the behaviour of a leaf type that has no implementation (scripted leaves).
+LeafFactory = Callable[[Node, "Runtime", Blackboard], Behavior]
+
+
+class Runtime:
+    """What every behaviour of one executor shares: the clock, the event feed, the tick."""
+
+    __slots__ = ("clock", "emit_status", "tick", "wake_up")
+
+    def __init__(self, clock: SimClock | WallClock) -> None:
+        self.clock = clock
+        self.tick = 0
+        self.wake_up = False
+        self.emit_status: Callable[[int, Status, Status], None] | None = None
+
+
+class Executor:
+    """Runs a ``Tree`` with BehaviorTree.CPP v4 semantics.
+
+    ``leaf_factory`` builds leaves whose type has no implementation (the outcomes of a
+    simulated run); without one, such a tree is refused.
+    """
+
+    def __init__(self, tree: Tree, registry: Registry | None = None,
+                 clock: SimClock | WallClock | None = None,
+                 leaf_factory: LeafFactory | None = None) -> None:
+        self.tree = tree
+        self.registry = registry or Registry()
+        self.runtime = Runtime(clock or SimClock())
+        self.leaf_factory = leaf_factory
+        self.subscribers: list[Subscriber] = []
+        self.seq = 0
+        self.root_board = Blackboard("")
+        self.root_board.on_write = self._on_write
+        self._initial_writes: list[tuple[Blackboard, str, Any]] = []
+        self.behaviors: dict[int, Behavior] = {}
+        self.root = self._build(tree.root, self.root_board)
+        self.started = False
+        self.last_status: Status = IDLE
+
+    # -- construction ------------------------------------------------------------------
+    def _behavior_class(self, node: Node) -> type[Behavior] | None:
+        node_type = self.registry.get(node.type)
+        if node_type is not None and node_type.factory is not None:
+            return node_type.factory
+        return BUILTIN_BEHAVIORS.get(node.type)
+
+    def _build(self, node: Node, board: Blackboard) -> Behavior:
+        cls = self._behavior_class(node)
+        if node.kind == SUBTREE:
+            inner = self._subtree_board(node, board)
+            behavior = cls(node, self.runtime, board)
+            behavior.children = [self._build(node.children[0], inner)]
+        elif cls is None:
+            if self.leaf_factory is None or node.children:
+                raise NodeExecutionError(node, f"no implementation of node type {node.type!r}")
+            behavior = self.leaf_factory(node, self.runtime, board)
+        else:
+            behavior = cls(node, self.runtime, board)
+            behavior.children = [self._build(child, board) for child in node.children]
+        self.behaviors[node.uid] = behavior
+        return behavior
+
+    def _subtree_board(self, node: Node, parent: Blackboard) -> Blackboard:
+        if node.attributes.get("shared_blackboard") == "true":
+            return parent
+        scope = node.children[0].scope
+        remap: dict[str, str] = {}
+        literals: list[tuple[str, Any]] = []
+        for name, port in node.ports.items():
+            key = blackboard_key(port.value)
+            if key == "=" or (key is None and port.value.strip() == "="):
+                remap[name] = name
+            elif key is not None:
+                remap[name] = key
+            else:
+                literals.append((name, parse_literal(port.value)))
+        autoremap = node.attributes.get("_autoremap", "false").strip().lower() == "true"
+        board = Blackboard(scope, parent, remap, autoremap)
+        for name, value in literals:
+            board.entries[name] = value
+            self._initial_writes.append((board, name, value))
+        return board
+
+    # -- subscribers -------------------------------------------------------------------
+    def subscribe(self, subscriber: Subscriber) -> None:
+        """Deliver every later event to ``subscriber``."""
+        self.subscribers.append(subscriber)
+        self._wire()
+
+    def unsubscribe(self, subscriber: Subscriber) -> None:
+        """Stop delivering events to ``subscriber``."""
+        self.subscribers.remove(subscriber)
+        self._wire()
+
+    def _wire(self) -> None:
+        subscribers = tuple(self.subscribers)
+        if not subscribers:
+            self.runtime.emit_status = None
+            return
+        runtime = self.runtime
+        now = runtime.clock.now_ns
+        if len(subscribers) == 1:
+            deliver = subscribers[0].on_status
+
+            def emit(uid: int, prev: Status, new: Status) -> None:
+                seq = self.seq
+                self.seq = seq + 1
+                deliver(seq, now(), runtime.tick, uid, prev, new)
+        else:
+            handlers = tuple(s.on_status for s in subscribers)
+
+            def emit(uid: int, prev: Status, new: Status) -> None:
+                seq = self.seq
+                self.seq = seq + 1
+                t = now()
+                for handler in handlers:
+                    handler(seq, t, runtime.tick, uid, prev, new)
+        runtime.emit_status = emit
+
+    def _on_write(self, scope: str, key: str, value: Any, writer: int | None) -> None:
+        if not self.subscribers:
+            return
+        seq = self.seq
+        self.seq = seq + 1
+        t = self.runtime.clock.now_ns()
+        kind = "unset" if value is UNSET else type_name(value)
+        if value is UNSET:
+            value = None
+        for subscriber in self.subscribers:
+            subscriber.on_write(seq, t, self.runtime.tick, scope, key, value, kind, writer)
+
+    # -- running -----------------------------------------------------------------------
+    def begin(self) -> None:
+        """Report the initial blackboard entries (SubTree literals). Called once, by the
+        first ``tick`` if not before; subscribe before it to see them."""
+        if self.started:
+            return
+        self.started = True
+        for board, key, value in self._initial_writes:
+            self._on_write(board.scope, key, value, None)
+
+    def tick(self) -> Status:
+        """One tick of the root (BT.CPP's tickOnce); returns the root's status."""
+        self.begin()
+        runtime = self.runtime
+        runtime.tick += 1
+        runtime.clock.start_tick(runtime.tick)
+        start = runtime.clock.now_ns()
+        root = self.root
+        status = root.execute_tick()
+        while status is RUNNING and runtime.wake_up:
+            runtime.wake_up = False
+            status = root.execute_tick()
+        if status is SUCCESS or status is FAILURE:
+            root.reset_status()
+        self.last_status = status
+        if self.subscribers:
+            record = TickRecord(runtime.tick, start, runtime.clock.now_ns(), status)
+            for subscriber in self.subscribers:
+                subscriber.on_tick(record)
+        return status
+
+    def run(self, max_ticks: int | None = None,
+            before_tick: Callable[[Executor], None] | None = None) -> Status:
+        """Tick until the root completes or ``max_ticks``; a run stopped by the limit halts
+        the tree. Returns the last root status."""
+        status = IDLE
+        while max_ticks is None or self.runtime.tick < max_ticks:
+            if before_tick is not None:
+                before_tick(self)
+            status = self.tick()
+            if status is SUCCESS or status is FAILURE:
+                return status
+        self.halt()
+        return status
+
+    def halt(self) -> None:
+        """Halt the whole tree (halt transitions are reported in the current tick)."""
+        self.root.halt_node()
+
+    def close(self) -> None:
+        """Tell subscribers the run is over."""
+        for subscriber in self.subscribers:
+            subscriber.on_close()
+
+    # -- inspection --------------------------------------------------------------------
+    def statuses(self) -> dict[int, Status]:
+        """Every node's current status by uid."""
+        return {uid: b.status for uid, b in self.behaviors.items()}
+
+    def blackboards(self) -> dict[str, dict[str, Any]]:
+        """Every scope's entries (only scopes that hold entries)."""
+        boards: dict[str, dict[str, Any]] = {}
+        seen: set[int] = set()
+        for behavior in self.behaviors.values():
+            board = behavior.blackboard.board
+            if id(board) not in seen and board.entries:
+                seen.add(id(board))
+                boards[board.scope] = dict(board.entries)
+        return boards
+
+    # -- mutation ----------------------------------------------------------------------
+    def insert_after(self, parent_uid: int, after_uid: int | None, source: Node,
+                     question: str = "") -> TreeMutation:
+        """Insert a deep copy of ``source`` (fresh uids) under ``parent_uid`` right after
+        ``after_uid``, while running; the parent finds the new child dynamically."""
+        parent = self.tree.node(parent_uid)
+        parent_behavior = self.behaviors[parent_uid]
+        if not isinstance(parent_behavior, ControlBehavior):
+            raise ValueError(f"cannot insert under {parent.description!r}: not a control node")
+        copy = self.tree.copy_subtree(source, self.tree.next_uid)
+        seq = self.seq
+        after = None if after_uid is None else self.tree.node(after_uid)
+        index = self.tree.insert_after(parent, after, copy, seq)
+        board = parent_behavior.blackboard.board
+        behavior = self._build(copy, board)
+        parent_behavior.insert_child(index, behavior)
+        self.seq += 1
+        mutation = TreeMutation(seq, self.runtime.clock.now_ns(), self.runtime.tick, "insert",
+                                parent_uid, after_uid, [n.describe() for n in copy.walk()],
+                                question)
+        for subscriber in self.subscribers:
+            subscriber.on_mutation(mutation)
+        return mutation
+
+
+def attach_all(executor: Executor, subscribers: Iterable[Subscriber]) -> None:
+    """Subscribe several subscribers at once."""
+    for subscriber in subscribers:
+        executor.subscribe(subscriber)

@@ -1,0 +1,79 @@
+"""Typed port values: converting the strings of XML (and of the blackboard) to values.
+
+BT.CPP converts a port's string to the port's declared type when the port is read. btlog
+does the same for the types users declare: ``int``, ``float``, ``bool``, ``str``, ``json``
+(a JSON document, with or without BT.CPP's ``json:`` prefix), ``status`` and ``any``
+(kept as the XML string, as BT.CPP keeps an untyped literal).
+"""
+
+from __future__ import annotations
+
+import json
+from typing import Any
+
+from btlog.status import Status
+
+TRUE_WORDS = {"true", "1", "yes", "on"}
+FALSE_WORDS = {"false", "0", "no", "off"}
+
+
+class PortValueError(ValueError):
+    """A value that cannot be converted to the port's type."""
+
+
+def convert(value: Any, type_name: str) -> Any:
+    """Convert ``value`` (usually a string) to ``type_name``; raise PortValueError if bad."""
+    if type_name in ("str", "any", "", None):
+        return value
+    if not isinstance(value, str):
+        return _convert_value(value, type_name)
+    text = value.strip()
+    try:
+        if type_name == "int":
+            return int(text, 0) if text.lower().startswith(("0x", "-0x")) else int(text)
+        if type_name in ("float", "double"):
+            return float(text)
+        if type_name == "bool":
+            lowered = text.lower()
+            if lowered in TRUE_WORDS:
+                return True
+            if lowered in FALSE_WORDS:
+                return False
+            raise ValueError
+        if type_name == "json":
+            return json.loads(text[5:] if text.startswith("json:") else text)
+        if type_name == "status":
+            return Status[text.upper()]
+    except (ValueError, KeyError):
+        raise PortValueError(f"{value!r} is not a valid {type_name}") from None
+    return value
+
+
+def _convert_value(value: Any, type_name: str) -> Any:
+    try:
+        if type_name == "int" and not isinstance(value, bool):
+            if isinstance(value, float) and not value.is_integer():
+                raise ValueError
+            return int(value)
+        if type_name in ("float", "double") and not isinstance(value, bool):
+            return float(value)
+        if type_name == "bool":
+            return bool(value)
+        if type_name == "status":
+            return Status(value)
+    except (TypeError, ValueError):
+        raise PortValueError(f"{value!r} is not a valid {type_name}") from None
+    return value
+
+
+def parse_literal(text: str) -> Any:
+    """A SubTree literal as BT.CPP stores it: int, then float, else the string."""
+    stripped = text.strip()
+    try:
+        return int(stripped)
+    except ValueError:
+        pass
+    try:
+        return float(stripped)
+    except ValueError:
+        return text

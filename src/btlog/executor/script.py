@@ -1,0 +1,289 @@
+"""BT.CPP's scripting language: the code of Script, ScriptCondition, Precondition and of
+the ``_skipIf``/``_onSuccess``… attributes.
+
+Supported: statements separated by ``;``; assignment ``:=`` (creates the entry), ``=``
+(the entry must exist), ``+=``, ``-=``, ``*=``, ``/=``; arithmetic ``+ - * /``, string
+concatenation ``..``; comparisons ``== != < <= > >=``; logic ``&& || !`` (also ``and``,
+``or``, ``not``); bitwise ``& | ^ ~``; the ternary ``c ? a : b``; numbers (integers,
+decimals, hex), strings in single or double quotes, ``true``/``false``, and blackboard
+keys (``@key`` for the root blackboard). Scripts are compiled once into closures.
+
+A script runs in an environment with ``get(key)``, ``set(key, value)``, ``exists(key)``.
+"""
+
+from __future__ import annotations
+
+import re
+from collections.abc import Callable
+from functools import lru_cache
+from typing import Any, Protocol
+
+
+class ScriptError(ValueError):
+    """A script that does not parse, or fails while running."""
+
+
+class Environment(Protocol):
+    """What a script reads and writes: the node's blackboard."""
+
+    def get(self, key: str) -> Any: ...
+    def set(self, key: str, value: Any) -> None: ...
+    def exists(self, key: str) -> bool: ...
+
+
+_TOKEN = re.compile(r"""
+    (?P<ws>\s+)
+  | (?P<num>0[xX][0-9a-fA-F]+|\d+\.\d*(?:[eE][-+]?\d+)?|\.\d+(?:[eE][-+]?\d+)?|\d+(?:[eE][-+]?\d+)?)
+  | (?P<str>'[^']*'|"[^"]*")
+  | (?P<op>:=|\+=|-=|\*=|/=|==|!=|<=|>=|&&|\|\||\.\.|[-+*/<>=!?:;()&|^~])
+  | (?P<id>@?[A-Za-z_][A-Za-z0-9_]*)
+""", re.VERBOSE)
+
+_WORD_OPS = {"and": "&&", "or": "||", "not": "!"}
+Expr = Callable[[Environment], Any]
+
+
+def _tokenize(code: str) -> list[tuple[str, str]]:
+    tokens, pos = [], 0
+    while pos < len(code):
+        match = _TOKEN.match(code, pos)
+        if match is None:
+            raise ScriptError(f"unexpected character {code[pos]!r} at column {pos + 1}")
+        pos = match.end()
+        kind = match.lastgroup
+        text = match.group()
+        if kind == "ws":
+            continue
+        if kind == "id" and text in _WORD_OPS:
+            kind, text = "op", _WORD_OPS[text]
+        tokens.append((kind, text))
+    tokens.append(("end", ""))
+    return tokens
+
+
+def _number(text: str) -> int | float:
+    if text.lower().startswith("0x"):
+        return int(text, 16)
+    if any(c in text for c in ".eE"):
+        return float(text)
+    return int(text)
+
+
+def _to_number(value: Any) -> Any:
+    if isinstance(value, bool):
+        return int(value)
+    if isinstance(value, str):
+        try:
+            return _number(value.strip())
+        except ValueError:
+            raise ScriptError(f"{value!r} is not a number") from None
+    return value
+
+
+def _equal(a: Any, b: Any) -> bool:
+    if isinstance(a, str) != isinstance(b, str):
+        try:
+            return _to_number(a) == _to_number(b)
+        except ScriptError:
+            return False
+    return a == b
+
+
+def _compare(op: str) -> Callable[[Any, Any], bool]:
+    def compare(a: Any, b: Any) -> bool:
+        if not (isinstance(a, str) and isinstance(b, str)):
+            a, b = _to_number(a), _to_number(b)
+        if op == "<":
+            return a < b
+        if op == "<=":
+            return a <= b
+        if op == ">":
+            return a > b
+        return a >= b
+    return compare
+
+
+def _divide(a: Any, b: Any) -> Any:
+    a, b = _to_number(a), _to_number(b)
+    if b == 0:
+        raise ScriptError("division by zero")
+    if isinstance(a, int) and isinstance(b, int) and a % b == 0:
+        return a // b
+    return a / b
+
+
+def _add(a: Any, b: Any) -> Any:
+    return _to_number(a) + _to_number(b)
+
+
+_BINARY: dict[str, Callable[[Any, Any], Any]] = {
+    "+": _add,
+    "-": lambda a, b: _to_number(a) - _to_number(b),
+    "*": lambda a, b: _to_number(a) * _to_number(b),
+    "/": _divide,
+    "..": lambda a, b: _text(a) + _text(b),
+    "==": _equal,
+    "!=": lambda a, b: not _equal(a, b),
+    "<": _compare("<"), "<=": _compare("<="), ">": _compare(">"), ">=": _compare(">="),
+    "&": lambda a, b: int(_to_number(a)) & int(_to_number(b)),
+    "|": lambda a, b: int(_to_number(a)) | int(_to_number(b)),
+    "^": lambda a, b: int(_to_number(a)) ^ int(_to_number(b)),
+}
+_PRECEDENCE = [("||",), ("&&",), ("|",), ("^",), ("&",), ("==", "!="),
+               ("<", "<=", ">", ">="), ("+", "-", ".."), ("*", "/")]
+
+
+def _text(value: Any) -> str:
+    if isinstance(value, bool):
+        return "true" if value else "false"
+    return str(value)
+
+
+def truthy(value: Any) -> bool:
+    """BT.CPP's cast to bool: numbers are true when non-zero, strings by their words."""
+    if isinstance(value, str):
+        lowered = value.strip().lower()
+        if lowered in ("true", "false"):
+            return lowered == "true"
+        return bool(_to_number(value))
+    return bool(value)
+
+
+class _Parser:
+    def __init__(self, code: str) -> None:
+        self.tokens = _tokenize(code)
+        self.pos = 0
+
+    def peek(self) -> tuple[str, str]:
+        return self.tokens[self.pos]
+
+    def take(self, text: str | None = None) -> tuple[str, str]:
+        token = self.tokens[self.pos]
+        if text is not None and token[1] != text:
+            found = token[1] or "the end"
+            raise ScriptError(f"expected {text!r}, found {found!r}")
+        self.pos += 1
+        return token
+
+    def program(self) -> list[Expr]:
+        statements = []
+        while self.peek()[0] != "end":
+            if self.peek()[1] == ";":
+                self.take()
+                continue
+            statements.append(self.statement())
+            if self.peek()[0] != "end":
+                self.take(";")
+        if not statements:
+            raise ScriptError("empty script")
+        return statements
+
+    def statement(self) -> Expr:
+        kind, text = self.peek()
+        following = self.tokens[self.pos + 1][1]
+        if kind == "id" and following in (":=", "=", "+=", "-=", "*=", "/="):
+            self.take()
+            op = self.take()[1]
+            value = self.ternary()
+            return _assignment(text, op, value)
+        return self.ternary()
+
+    def ternary(self) -> Expr:
+        condition = self.binary(0)
+        if self.peek()[1] != "?":
+            return condition
+        self.take("?")
+        then = self.ternary()
+        self.take(":")
+        otherwise = self.ternary()
+        return lambda env: then(env) if truthy(condition(env)) else otherwise(env)
+
+    def binary(self, level: int) -> Expr:
+        if level == len(_PRECEDENCE):
+            return self.unary()
+        left = self.binary(level + 1)
+        while self.peek()[0] == "op" and self.peek()[1] in _PRECEDENCE[level]:
+            op = self.take()[1]
+            right = self.binary(level + 1)
+            left = _logic(op, left, right) if op in ("&&", "||") else _binary(op, left, right)
+        return left
+
+    def unary(self) -> Expr:
+        kind, text = self.peek()
+        if kind == "op" and text in ("-", "!", "~", "+"):
+            self.take()
+            operand = self.unary()
+            if text == "-":
+                return lambda env: -_to_number(operand(env))
+            if text == "!":
+                return lambda env: not truthy(operand(env))
+            if text == "~":
+                return lambda env: ~int(_to_number(operand(env)))
+            return operand
+        return self.primary()
+
+    def primary(self) -> Expr:
+        kind, text = self.take()
+        if kind == "num":
+            value = _number(text)
+            return lambda env: value
+        if kind == "str":
+            literal = text[1:-1]
+            return lambda env: literal
+        if kind == "id":
+            if text in ("true", "false"):
+                flag = text == "true"
+                return lambda env: flag
+            return lambda env: _read(env, text)
+        if text == "(":
+            inner = self.ternary()
+            self.take(")")
+            return inner
+        raise ScriptError(f"unexpected {text or 'end of script'!r}")
+
+
+def _read(env: Environment, key: str) -> Any:
+    if not env.exists(key):
+        raise ScriptError(f"variable {key!r} is not on the blackboard")
+    return env.get(key)
+
+
+def _binary(op: str, left: Expr, right: Expr) -> Expr:
+    function = _BINARY[op]
+    return lambda env: function(left(env), right(env))
+
+
+def _logic(op: str, left: Expr, right: Expr) -> Expr:
+    if op == "&&":
+        return lambda env: truthy(left(env)) and truthy(right(env))
+    return lambda env: truthy(left(env)) or truthy(right(env))
+
+
+def _assignment(key: str, op: str, value: Expr) -> Expr:
+    def assign(env: Environment) -> Any:
+        new = value(env)
+        if op == ":=":
+            env.set(key, new)
+            return new
+        if not env.exists(key):
+            raise ScriptError(f"variable {key!r} does not exist; use := to create it")
+        if op != "=":
+            new = _BINARY[op[0]](env.get(key), new)
+        env.set(key, new)
+        return new
+    return assign
+
+
+@lru_cache(maxsize=4096)
+def compile_script(code: str) -> Callable[[Environment], Any]:
+    """Compile a script; the result runs it in an environment and returns the last value."""
+    statements = _Parser(code).program()
+    if len(statements) == 1:
+        return statements[0]
+
+    def run(env: Environment) -> Any:
+        result = None
+        for statement in statements:
+            result = statement(env)
+        return result
+    return run

@@ -1,0 +1,1 @@
+"""Explanations of behavior-tree executions."""

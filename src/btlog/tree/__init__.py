@@ -1,0 +1,1 @@
+"""Trees: the structure model, the registry of node types and the XML loader."""

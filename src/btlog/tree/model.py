@@ -1,0 +1,252 @@
+"""The tree model: the structure of a behavior tree as plain data.
+
+A tree is what the XML describes once subtrees are expanded: nodes with a registration
+type, an instance name, a kind (control, decorator, subtree, action, condition), their
+ports as written, and their children. UIDs follow BehaviorTree.CPP v4 (DFS pre-order from
+1, a subtree's nodes right after its SubTree node), so that btlog's logs line up with
+BT.CPP's own.
+
+The model holds no behaviour and no run-time status. The executor builds behaviours
+from it; the explanation algorithms read it beside a state; the recorder writes it as
+the ``/btlog/tree`` message and the reader rebuilds it from that message. Dynamic
+insertion (the paper's Algorithm 9) is a change of this model, described by a
+``TreeMutation`` event so that a replay can apply it too.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Iterator
+from dataclasses import dataclass, field
+
+CONTROL = "control"
+DECORATOR = "decorator"
+SUBTREE = "subtree"
+ACTION = "action"
+CONDITION = "condition"
+KINDS = (CONTROL, DECORATOR, SUBTREE, ACTION, CONDITION)
+EXECUTION_KINDS = (ACTION, CONDITION)
+
+INPUT = "input"
+OUTPUT = "output"
+INOUT = "inout"
+
+
+@dataclass(frozen=True)
+class Port:
+    """One port of a node instance: its value as written and its direction."""
+
+    value: str
+    direction: str = INPUT
+
+    @property
+    def key(self) -> str | None:
+        """The blackboard key when the value is a ``{key}`` reference, else None."""
+        return blackboard_key(self.value)
+
+
+def blackboard_key(value: str) -> str | None:
+    """Return the key of a ``{key}`` reference (BT.CPP's isBlackboardPointer), else None."""
+    text = value.strip()
+    if len(text) >= 3 and text[0] == "{" and text[-1] == "}":
+        return text[1:-1].strip()
+    return None
+
+
+@dataclass(eq=False)
+class Node:
+    """One node of a tree, as loaded; identity is the object (uids are unique per tree)."""
+
+    uid: int
+    type: str
+    name: str
+    kind: str
+    ports: dict[str, Port] = field(default_factory=dict)
+    attributes: dict[str, str] = field(default_factory=dict)
+    children: list[Node] = field(default_factory=list)
+    parent: Node | None = None
+    path: str = ""
+    scope: str = ""
+    file: str = ""
+    line: int = 0
+    added_seq: int | None = None
+
+    @property
+    def description(self) -> str:
+        """d(n) of the paper: the name, or the registration type when the name is empty."""
+        return self.name or self.type
+
+    @property
+    def is_execution(self) -> bool:
+        """True for actions and conditions (the paper's execution nodes)."""
+        return self.kind in EXECUTION_KINDS
+
+    @property
+    def index(self) -> int:
+        """Position among the parent's children (0 for the root)."""
+        return 0 if self.parent is None else self.parent.children.index(self)
+
+    @property
+    def depth(self) -> int:
+        """Distance from the root (the root has depth 0)."""
+        depth, node = 0, self.parent
+        while node is not None:
+            depth, node = depth + 1, node.parent
+        return depth
+
+    def ancestors(self) -> Iterator[Node]:
+        """The parent, its parent, … up to the root."""
+        node = self.parent
+        while node is not None:
+            yield node
+            node = node.parent
+
+    def walk(self) -> Iterator[Node]:
+        """This node and its descendants in depth-first pre-order."""
+        stack = [self]
+        while stack:
+            node = stack.pop()
+            yield node
+            stack.extend(reversed(node.children))
+
+    def describe(self) -> dict:
+        """The node as a JSON-ready dict (the ``/btlog/tree`` node record)."""
+        return {
+            "uid": self.uid,
+            "parent_uid": None if self.parent is None else self.parent.uid,
+            "idx": self.index,
+            "kind": self.kind,
+            "type": self.type,
+            "name": self.name,
+            "path": self.path,
+            "scope": self.scope,
+            "ports": {k: {"value": p.value, "direction": p.direction} for k, p in self.ports.items()},
+            "attributes": dict(self.attributes),
+            "file": self.file,
+            "line": self.line,
+        }
+
+    def __repr__(self) -> str:
+        return f"<Node {self.uid} {self.type} {self.name!r}>"
+
+
+def node_from_description(record: dict) -> Node:
+    """Rebuild a parentless, childless node from its ``describe()`` record."""
+    return Node(
+        uid=record["uid"],
+        type=record["type"],
+        name=record["name"],
+        kind=record["kind"],
+        ports={
+            k: Port(p["value"], p.get("direction", INPUT)) for k, p in record.get("ports", {}).items()
+        },
+        attributes=dict(record.get("attributes", {})),
+        path=record.get("path", ""),
+        scope=record.get("scope", ""),
+        file=record.get("file", ""),
+        line=record.get("line", 0),
+    )
+
+
+def link_nodes(records: list[dict]) -> list[Node]:
+    """Rebuild nodes from records and link parents and children; returns them in order."""
+    nodes = [node_from_description(r) for r in records]
+    by_uid = {n.uid: n for n in nodes}
+    for node, record in sorted(zip(nodes, records, strict=True), key=lambda p: p[1]["idx"]):
+        parent_uid = record["parent_uid"]
+        if parent_uid is not None and parent_uid in by_uid:
+            node.parent = by_uid[parent_uid]
+            node.parent.children.append(node)
+    return nodes
+
+
+@dataclass(eq=False)
+class Tree:
+    """A loaded tree: the root of the main tree, every node by uid, and where it came from."""
+
+    root: Node
+    name: str = "MainTree"
+    format: int = 4
+    files: list[str] = field(default_factory=list)
+    nodes: dict[int, Node] = field(default_factory=dict)
+
+    def __post_init__(self) -> None:
+        if not self.nodes:
+            self.nodes = {n.uid: n for n in self.root.walk()}
+
+    def __iter__(self) -> Iterator[Node]:
+        return self.root.walk()
+
+    def __len__(self) -> int:
+        return len(self.nodes)
+
+    def node(self, uid: int) -> Node:
+        """The node with this uid (KeyError if there is none)."""
+        return self.nodes[uid]
+
+    @property
+    def next_uid(self) -> int:
+        """The first uid not used yet (fresh uids for inserted nodes start here)."""
+        return max(self.nodes) + 1
+
+    def find(self, key: str) -> list[Node]:
+        """Nodes matching an outcomes/expectations key: name, type (of nameless nodes) or path."""
+        exact = [n for n in self if n.path == key or n.name == key]
+        return exact or [n for n in self if not n.name and n.type == key]
+
+    def describe(self) -> dict:
+        """The tree as the JSON-ready ``/btlog/tree`` message."""
+        return {
+            "tree_name": self.name,
+            "format": self.format,
+            "nodes": [n.describe() for n in self],
+        }
+
+    @classmethod
+    def from_description(cls, message: dict) -> Tree:
+        """Rebuild a tree from its ``/btlog/tree`` message."""
+        nodes = link_nodes(message["nodes"])
+        root = next(n for n in nodes if n.parent is None)
+        return cls(root=root, name=message.get("tree_name", "MainTree"),
+                   format=message.get("format", 4))
+
+    def copy_subtree(self, node: Node, first_uid: int) -> Node:
+        """A deep copy of ``node``'s subtree with fresh uids from ``first_uid``, parentless."""
+        uid = first_uid
+
+        def clone(original: Node) -> Node:
+            nonlocal uid
+            copy = Node(uid=uid, type=original.type, name=original.name, kind=original.kind,
+                        ports=dict(original.ports), attributes=dict(original.attributes),
+                        path=original.path, scope=original.scope, file=original.file,
+                        line=original.line)
+            uid += 1
+            for child in original.children:
+                child_copy = clone(child)
+                child_copy.parent = copy
+                copy.children.append(child_copy)
+            return copy
+
+        return clone(node)
+
+    def insert_after(self, parent: Node, after: Node | None, subtree: Node, seq: int | None) -> int:
+        """Insert ``subtree`` (fresh uids) as a child of ``parent`` right after ``after``.
+
+        Returns the index the subtree was inserted at. ``after=None`` inserts first.
+        """
+        index = 0 if after is None else parent.children.index(after) + 1
+        subtree.parent = parent
+        parent.children.insert(index, subtree)
+        self._register_inserted(subtree, parent.scope, seq)
+        return index
+
+    def _register_inserted(self, node: Node, scope: str, seq: int | None) -> None:
+        """Give an inserted node (and its subtree) its scope, a unique path and its seq."""
+        if node.uid in self.nodes:
+            raise ValueError(f"uid {node.uid} is already used in the tree")
+        node.added_seq = seq
+        node.scope = scope
+        node.path = (f"{scope}/" if scope else "") + f"{node.description}::{node.uid}"
+        self.nodes[node.uid] = node
+        inner = node.path if node.kind == SUBTREE else scope
+        for child in node.children:
+            self._register_inserted(child, inner, seq)

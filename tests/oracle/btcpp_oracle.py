@@ -1,0 +1,229 @@
+"""Run one tree in BehaviorTree.CPP (through behaviortreepy) and print its transitions.
+
+Usage (from the project root)::
+
+    echo '{"xml": "...", "outcomes": {...}, "max_ticks": 20}' | python -m tests.oracle.btcpp_oracle
+
+or ``python tests/oracle/btcpp_oracle.py``. The input may also carry ``"tick_mode"``:
+``"once"`` (default, ``Tree::tickOnce``, which re-ticks the root in the same call while a node
+has emitted the wake-up signal and the root is RUNNING) or ``"exactly_once"``
+(``Tree::tickExactlyOnce``).
+
+Output, one JSON object on stdout::
+
+    {"transitions": [[tick, name, prev, new], ...],
+     "root": ["RUNNING", ..., "SUCCESS"],
+     "error": null,
+     "ticks": 3, "halted": false, "other_output": []}
+
+* ``tick`` counts the calls of ``tick_once`` from 1; the transitions of the final
+  ``halt_tree()`` (made when the root is still RUNNING or SKIPPED after ``max_ticks``) carry
+  the number of the last tick, and ``halted`` is true.
+* ``root`` holds the status returned by each ``tick_once``.
+* ``error`` is null, or ``"create: <message>"`` when BT.CPP refused the XML, or
+  ``"tick N: <message>"`` when a tick threw (transitions up to the throw are kept).
+* ``other_output`` holds any line BT.CPP printed on stdout that is not a transition.
+
+Transitions are read from ``StdCoutLogger``, which prints every status change
+synchronously (``[time]: NAME<pad> PREV -> NEW``): file descriptor 1 is redirected to a
+temporary file while BT.CPP runs, and restored before the JSON is printed.
+"""
+
+from __future__ import annotations
+
+import ctypes
+import json
+import os
+import re
+import sys
+import tempfile
+from typing import Any
+
+if __package__:
+    from .scripted import ScriptedLeaves
+else:  # run as a script
+    sys.path.insert(0, os.path.dirname(os.path.abspath(__file__)))
+    from scripted import ScriptedLeaves  # type: ignore[no-redef]
+
+ACTION_ID = "ScriptedAction"
+CONDITION_ID = "ScriptedCondition"
+
+_STATUS = "IDLE|RUNNING|SUCCESS|FAILURE|SKIPPED"
+_LINE = re.compile(rf"^\[[-+0-9.eE]+\]: (.*) ({_STATUS}) -> ({_STATUS})$")
+_ANSI = re.compile(r"\x1b\[[0-9;]*m")
+_NAME_PAD = 25  # StdCoutLogger pads names shorter than this with spaces
+
+
+def parse_logger_line(line: str) -> tuple[str, str, str] | None:
+    """Parse one ``StdCoutLogger`` line into ``(name, prev, new)``; None if it is not one."""
+    match = _LINE.match(_ANSI.sub("", line.rstrip("\r\n")))
+    if match is None:
+        return None
+    padded, prev, new = match.groups()
+    name = padded if len(padded) > _NAME_PAD else padded.rstrip(" ")
+    return name, prev, new
+
+
+class _StdoutCapture:
+    """Redirect file descriptor 1 to a temporary file and hand out what was written since."""
+
+    def __init__(self) -> None:
+        sys.stdout.flush()
+        self._libc = ctypes.CDLL(None)
+        self.saved_fd = os.dup(1)
+        self._file = tempfile.TemporaryFile()
+        os.dup2(self._file.fileno(), 1)
+        self._offset = 0
+        self._partial = b""
+
+    def read_lines(self) -> list[str]:
+        """Flush C stdio and return the complete lines written since the last call."""
+        self._libc.fflush(None)
+        size = os.fstat(self._file.fileno()).st_size
+        data = b""
+        while self._offset < size:
+            chunk = os.pread(self._file.fileno(), size - self._offset, self._offset)
+            if not chunk:
+                break
+            data += chunk
+            self._offset += len(chunk)
+        data = self._partial + data
+        *lines, self._partial = data.split(b"\n")
+        return [line.decode("utf-8", "replace") for line in lines]
+
+    def restore(self) -> list[str]:
+        """Restore file descriptor 1; return any unterminated trailing output."""
+        rest = self.read_lines()
+        if self._partial:
+            rest.append(self._partial.decode("utf-8", "replace"))
+            self._partial = b""
+        os.dup2(self.saved_fd, 1)
+        os.close(self.saved_fd)
+        self._file.close()
+        return rest
+
+
+def _make_factory(bt: Any, leaves: ScriptedLeaves) -> Any:
+    status = {
+        "RUNNING": bt.NodeStatus.RUNNING,
+        "SUCCESS": bt.NodeStatus.SUCCESS,
+        "FAILURE": bt.NodeStatus.FAILURE,
+    }
+
+    def on_start(node: Any) -> Any:
+        return status[leaves.start(node.name(), node.uid())]
+
+    def on_running(node: Any) -> Any:
+        return status[leaves.running(node.name(), node.uid())]
+
+    def on_halted(node: Any) -> None:
+        leaves.halted(node.name(), node.uid())
+
+    def on_condition(node: Any) -> Any:
+        return status[leaves.condition(node.name(), node.uid())]
+
+    factory = bt.BehaviorTreeFactory()
+    factory.register_simple_stateful_action(ACTION_ID, on_start, on_running, on_halted)
+    factory.register_simple_condition(CONDITION_ID, on_condition)
+    return factory
+
+
+def run_case(xml: str, outcomes: dict[str, Any] | None, max_ticks: int,
+             tick_mode: str = "once") -> dict[str, Any]:
+    """Run ``xml`` in BT.CPP for at most ``max_ticks`` ticks; return the result dict.
+
+    Must run in a process of its own: it redirects file descriptor 1 while BT.CPP runs and
+    leaves the tree alive (its destructor halts it again), so call it once and exit.
+    """
+    import behaviortreepy as bt
+
+    leaves = ScriptedLeaves(outcomes or {})
+    result: dict[str, Any] = {
+        "transitions": [],
+        "root": [],
+        "error": None,
+        "ticks": 0,
+        "halted": False,
+        "other_output": [],
+    }
+    transitions: list[list[Any]] = result["transitions"]
+    other: list[str] = result["other_output"]
+
+    def collect(lines: list[str], tick: int) -> None:
+        for line in lines:
+            parsed = parse_logger_line(line)
+            if parsed is None:
+                if line.strip():
+                    other.append(line)
+            else:
+                transitions.append([tick, *parsed])
+
+    capture = _StdoutCapture()
+    keep_alive: list[Any] = []
+    try:
+        factory = _make_factory(bt, leaves)
+        try:
+            tree = factory.create_tree_from_text(xml)
+        except Exception as exc:
+            result["error"] = f"create: {exc}"
+            return result
+        logger = bt.StdCoutLogger(tree)
+        keep_alive += [factory, tree, logger]
+        tick_fn = tree.tick_exactly_once if tick_mode == "exactly_once" else tree.tick_once
+        last = "IDLE"
+        for tick in range(1, max_ticks + 1):
+            result["ticks"] = tick
+            try:
+                last = tick_fn().name
+            except Exception as exc:
+                collect(capture.read_lines(), tick)
+                result["error"] = f"tick {tick}: {exc}"
+                return result
+            collect(capture.read_lines(), tick)
+            result["root"].append(last)
+            if last in ("SUCCESS", "FAILURE"):
+                break
+        if last not in ("SUCCESS", "FAILURE"):
+            result["halted"] = True
+            try:
+                tree.halt_tree()
+            except Exception as exc:
+                result["error"] = f"halt: {exc}"
+            collect(capture.read_lines(), result["ticks"])
+    finally:
+        collect(capture.restore(), result["ticks"])
+        _KEEP.extend(keep_alive)
+    return result
+
+
+_KEEP: list[Any] = []  # trees are never destroyed: main() leaves with os._exit
+
+
+MAX_OUTPUT_BYTES = 256 * 1024 * 1024
+
+
+def _limit_output_size() -> None:
+    """Cap the size of files this process writes: a livelock (see README notes in
+    check_oracle) would otherwise fill the disk with logger lines before the parent's
+    timeout; exceeding the cap kills the process (SIGXFSZ), which counts as a crash."""
+    try:
+        import resource
+
+        resource.setrlimit(resource.RLIMIT_FSIZE, (MAX_OUTPUT_BYTES, MAX_OUTPUT_BYTES))
+    except (ImportError, ValueError, OSError):
+        pass
+
+
+def main() -> None:
+    """Read a case as JSON on stdin, run it, print the result as JSON and exit."""
+    _limit_output_size()
+    case = json.loads(sys.stdin.read())
+    result = run_case(case["xml"], case.get("outcomes"), int(case.get("max_ticks", 20)),
+                      case.get("tick_mode", "once"))
+    sys.stdout.write(json.dumps(result) + "\n")
+    sys.stdout.flush()
+    os._exit(0)
+
+
+if __name__ == "__main__":
+    main()
