@@ -1,0 +1,229 @@
+"""The commands that record, inspect and query runs (one function per command)."""
+
+from __future__ import annotations
+
+import csv
+import io
+import json
+import sys
+from argparse import Namespace
+from collections import Counter
+
+from rich.progress import BarColumn, Progress, TextColumn, TimeElapsedColumn
+
+from btlog.explain.hierarchy import current_nodes
+from btlog.explain.insertion import apply_to_copy
+from btlog.explain.questions import Answer, answer, explain as explain_all
+from btlog.render.terminal import (
+    blackboard_lines,
+    format_ns,
+    make_console,
+    safe,
+    tree_lines,
+)
+from btlog.runner import RunConfig, execute
+from btlog.status import Status
+from btlog.tree.loader import load_tree
+
+
+def _print_json(data: object) -> None:
+    print(json.dumps(data, indent=2, default=repr))
+
+
+# -- run ---------------------------------------------------------------------------------
+def run(args: Namespace) -> int:
+    """``btlog run``: execute and record; print the file, event count and final status."""
+    config = RunConfig(tree=args.tree, domain=args.domain, outcomes_file=args.outcomes,
+                       fail=args.fail, failure_rate=args.failure_rate, seed=args.seed,
+                       tick_period=args.tick_period, max_ticks=args.max_ticks,
+                       questions=args.ask, realtime=args.realtime,
+                       flush_interval=args.flush_interval)
+    console = make_console()
+
+    def on_answer(question, result: Answer, seq: int) -> None:
+        if not args.quiet:
+            print(f"[{question.when}] {question.question}\n  {result.text}", flush=True)
+
+    interactive = sys.stderr.isatty() and not args.quiet
+    if interactive:
+        progress = Progress(TextColumn("running"), BarColumn(), TextColumn("tick {task.completed}"),
+                            TimeElapsedColumn(), console=make_console(stderr=True),
+                            transient=True)
+        with progress:
+            task = progress.add_task("run", total=args.max_ticks)
+            result = execute(config, args.output, on_answer,
+                             on_tick=lambda tick: progress.update(task, completed=tick))
+    else:
+        result = execute(config, args.output, on_answer)
+    if args.quiet:
+        print(result.path)
+        return 0
+    console.print(f"recording: {safe(result.path)}", highlight=False)
+    console.print(f"events: {result.events}  ticks: {result.ticks}  final status: "
+                  f"{result.final_status.name}", highlight=False)
+    return 0
+
+
+# -- questions ---------------------------------------------------------------------------
+def _open_run(path: str):
+    from btlog.replay.database import open_runs
+
+    database = open_runs(path)
+    return database, database.run(path)
+
+
+def _state(path: str, moment: str):
+    database, run = _open_run(path)
+    try:
+        tree, state = run.state_at(moment)
+    finally:
+        database.close()
+    return tree, state
+
+
+def _moment_json(state, moment: str) -> dict:
+    return {"at": moment, "seq": state.seq, "t_ns": state.t_ns, "tick": state.tick}
+
+
+def ask(args: Namespace) -> int:
+    """``btlog ask``: one answer at a moment (Q7 shows the tree it would give)."""
+    tree, state = _state(args.run, args.at)
+    result = answer(tree, state, args.question)
+    if args.json:
+        _print_json({**result.to_json(), "moment": _moment_json(state, args.at)})
+        return 0
+    print(result.text)
+    if result.insertion is not None:
+        changed = apply_to_copy(tree, result.insertion)
+        console = make_console()
+        console.print("\nThe tree after this insertion (the recording is unchanged):")
+        inserted = {n.uid for n in changed if n.added_seq is not None or n.uid >= tree.next_uid}
+        for line in tree_lines(changed, state, inserted):
+            console.print(line)
+    return 0
+
+
+def explain(args: Namespace) -> int:
+    """``btlog explain``: Q1–Q6 at a moment."""
+    tree, state = _state(args.run, args.at)
+    answers = explain_all(tree, state)
+    if args.json:
+        _print_json({"moment": _moment_json(state, args.at),
+                     "answers": [a.to_json() for a in answers]})
+        return 0
+    for result in answers:
+        print(f"{result.question}\n  {result.text}")
+    return 0
+
+
+def show(args: Namespace) -> int:
+    """``btlog show``: the tree with each node's status at a moment."""
+    tree, state = _state(args.run, args.at)
+    console = make_console(args.plain)
+    current = {n.uid for n in current_nodes(tree, state)}
+    console.print(f"at {args.at}: seq {state.seq}, tick {state.tick}, {format_ns(state.t_ns)}",
+                  highlight=False)
+    for line in tree_lines(tree, state, current):
+        console.print(line)
+    if args.blackboard:
+        console.print()
+        for line in blackboard_lines(state) or ["(the blackboard is empty)"]:
+            console.print(line)
+    return 0
+
+
+def timeline(args: Namespace) -> int:
+    """``btlog timeline``: the events, filtered by node, status and time."""
+    database, run = _open_run(args.run)
+    try:
+        status = None
+        if args.status:
+            try:
+                status = Status[args.status.upper()]
+            except KeyError:
+                raise ValueError(f"unknown status {args.status!r}") from None
+        rows = run.timeline(node=args.node, status=status, start=args.start, end=args.end,
+                            writes=args.writes)
+    finally:
+        database.close()
+    if args.json:
+        for row in rows:
+            print(json.dumps(row, default=repr))
+        return 0
+    console = make_console(args.plain)
+    for row in rows:
+        console.print(_timeline_line(row), highlight=False)
+    if not rows:
+        console.print("(no events match)")
+    return 0
+
+
+def _timeline_line(row: dict) -> str:
+    head = f"{row['seq']:>7}  {format_ns(row['t_ns']):>10}  tick {row['tick']:<6}"
+    if row.get("kind") == "write":
+        value = json.dumps(row.get("value"), default=repr)
+        return f"{head} {safe(row.get('scope') or '(root)')}.{safe(row['key'])} = {safe(value)}"
+    name = safe(row.get("name") or row.get("type") or "")
+    return f"{head} {name} #{row['uid']}  {row['prev_status']} -> {row['status']}"
+
+
+# -- sql ---------------------------------------------------------------------------------
+def sql(args: Namespace) -> int:
+    """``btlog sql``: run a query over one or many runs."""
+    from btlog.replay.database import open_runs
+
+    database = open_runs(*args.runs)
+    try:
+        columns, rows = database.sql(args.query)
+    finally:
+        database.close()
+    if args.format == "json":
+        print(json.dumps([dict(zip(columns, row, strict=True)) for row in rows],
+                         default=str, indent=2))
+    elif args.format == "csv":
+        buffer = io.StringIO()
+        writer = csv.writer(buffer)
+        writer.writerow(columns)
+        writer.writerows(rows)
+        sys.stdout.write(buffer.getvalue())
+    else:
+        from rich.table import Table
+
+        table = Table(*[safe(c) for c in columns])
+        for row in rows:
+            table.add_row(*[safe("NULL" if v is None else v) for v in row])
+        make_console().print(table)
+    return 0
+
+
+# -- files -------------------------------------------------------------------------------
+def recover(args: Namespace) -> int:
+    """``btlog recover``: rewrite a truncated recording into a valid one."""
+    from btlog.record.recover import recover as salvage
+
+    report = salvage(args.broken, args.output)
+    print(report)
+    return 0
+
+
+def validate(args: Namespace) -> int:
+    """``btlog validate``: load a tree and report what it holds."""
+    tree = load_tree(args.tree)
+    kinds = Counter(n.kind for n in tree)
+    subtrees = [n for n in tree if n.kind == "subtree"]
+    leaf_types = sorted({n.type for n in tree if n.is_execution})
+    if args.json:
+        _print_json({"file": args.tree, "main_tree": tree.name, "format": tree.format,
+                     "nodes": len(tree), "kinds": dict(kinds), "files": tree.files,
+                     "subtrees": [n.description for n in subtrees], "leaf_types": leaf_types})
+        return 0
+    print(f"{safe(args.tree)}: OK (BehaviorTree.CPP v{tree.format} format)")
+    print(f"  main tree: {safe(tree.name)}; goal: {safe(tree.root.description)}")
+    print("  nodes: " + str(len(tree)) + " (" +
+          ", ".join(f"{count} {kind}" for kind, count in sorted(kinds.items())) + ")")
+    if subtrees:
+        print("  subgoals: " + "; ".join(safe(n.description) for n in subtrees))
+    print("  leaf types: " + "; ".join(safe(t) for t in leaf_types))
+    if len(tree.files) > 1:
+        print("  files: " + ", ".join(safe(f) for f in tree.files))
+    return 0

@@ -1,0 +1,162 @@
+"""The ``btlog`` command line: parsing, dispatch, and the exit-code contract.
+
+Exit codes: 0 ok, 1 a check failed, 2 bad input. Bad input of any kind (unreadable or
+invalid files, bad moments, unknown questions, bad SQL, bad trees) is reported as one
+line on stderr, never a traceback; set ``BTLOG_DEBUG=1`` to see the traceback.
+"""
+
+from __future__ import annotations
+
+import argparse
+import os
+import sys
+import traceback
+from collections.abc import Sequence
+
+from btlog import __version__
+
+EXIT_OK, EXIT_CHECK_FAILED, EXIT_BAD_INPUT = 0, 1, 2
+
+
+class BadInput(Exception):
+    """Raised by commands for bad input; the message is the one line shown."""
+
+
+def _add_moment(parser: argparse.ArgumentParser, required: bool = True) -> None:
+    parser.add_argument("--at", metavar="WHEN", required=required, default=None if required
+                        else "end", help="moment: 12.5s, 1500ms, -2s, tick:N, seq:N, end, "
+                        "or an ISO-8601 wall time" + ("" if required else " (default: end)"))
+
+
+def build_parser() -> argparse.ArgumentParser:
+    """The argument parser of every command."""
+    parser = argparse.ArgumentParser(
+        prog="btlog", description="Record behavior-tree runs and explain any moment of them.")
+    parser.add_argument("--version", action="version", version=f"btlog {__version__}")
+    commands = parser.add_subparsers(dest="command", metavar="COMMAND", required=True)
+
+    run = commands.add_parser("run", help="execute a tree and record the run",
+                              description="Execute a tree and record every event to MCAP.")
+    run.add_argument("tree", metavar="TREE", help="BehaviorTree.CPP XML file")
+    run.add_argument("--domain", default="scripted",
+                     help="simulated domain: scripted (default), kitting, taxi")
+    run.add_argument("--outcomes", metavar="F", help="outcomes file (YAML or JSON)")
+    run.add_argument("--fail", metavar="SPEC", action="append", default=[],
+                     help='fail a node\'s activation: "NAME" (first) or "NAME@N"')
+    run.add_argument("--failure-rate", metavar="P", type=float, default=0.0,
+                     help="probability that any activation fails (seeded; default 0)")
+    run.add_argument("--seed", metavar="N", type=int, default=0, help="random seed")
+    run.add_argument("--tick-period", metavar="S", type=float, default=0.1,
+                     help="seconds between ticks (default 0.1)")
+    run.add_argument("--max-ticks", metavar="N", type=int, default=100_000,
+                     help="stop (and halt the tree) after N ticks")
+    run.add_argument("--ask", metavar="WHEN=QUESTION", action="append", default=[],
+                     help='ask live, e.g. --ask "12.5s=Why are you doing this?"')
+    run.add_argument("--realtime", action="store_true",
+                     help="pace ticks to the wall clock instead of simulated time")
+    run.add_argument("--flush-interval", metavar="S", type=float, default=1.0,
+                     help="seconds between flushes to disk (default 1)")
+    run.add_argument("-o", "--output", metavar="OUT", help="recording file to write")
+    run.add_argument("--quiet", action="store_true", help="print only the recording's path")
+
+    ask = commands.add_parser("ask", help="answer one question at a moment")
+    ask.add_argument("run", metavar="RUN")
+    _add_moment(ask)
+    ask.add_argument("question", metavar="QUESTION")
+    ask.add_argument("--json", action="store_true", help="JSON output")
+
+    explain = commands.add_parser("explain", help="answer Q1-Q6 at a moment")
+    explain.add_argument("run", metavar="RUN")
+    _add_moment(explain)
+    explain.add_argument("--json", action="store_true", help="JSON output")
+
+    show = commands.add_parser("show", help="the tree with statuses at a moment")
+    show.add_argument("run", metavar="RUN")
+    _add_moment(show, required=False)
+    show.add_argument("--blackboard", action="store_true", help="also show the blackboard")
+    show.add_argument("--plain", action="store_true", help="no colour")
+
+    timeline = commands.add_parser("timeline", help="the events of a run")
+    timeline.add_argument("run", metavar="RUN")
+    timeline.add_argument("--node", metavar="N", help="name, type, path or uid")
+    timeline.add_argument("--status", metavar="S", help="only transitions to this status")
+    timeline.add_argument("--from", dest="start", metavar="W", help="from this moment")
+    timeline.add_argument("--to", dest="end", metavar="W", help="up to this moment")
+    timeline.add_argument("--writes", action="store_true", help="include blackboard writes")
+    timeline.add_argument("--json", action="store_true", help="JSON lines output")
+    timeline.add_argument("--plain", action="store_true", help="no colour")
+
+    replay = commands.add_parser("replay", help="step through a run interactively")
+    replay.add_argument("run", metavar="RUN")
+    replay.add_argument("--plain", action="store_true", help="no colour")
+    replay.add_argument("--script", metavar="FILE",
+                        help="read commands from FILE instead of the keyboard ('-': stdin)")
+
+    sql = commands.add_parser("sql", help="SQL over the read model")
+    sql.add_argument("runs", metavar="RUN", nargs="+")
+    sql.add_argument("query", metavar="QUERY")
+    sql.add_argument("--format", choices=("table", "csv", "json"), default="table")
+
+    diff = commands.add_parser("diff", help="divergence between two runs (or a run and a tree)")
+    diff.add_argument("a", metavar="A", help="a recording")
+    diff.add_argument("b", metavar="B", help="a recording, or a tree XML (its nominal run)")
+    diff.add_argument("--json", action="store_true", help="JSON output")
+    diff.add_argument("--plain", action="store_true", help="no colour")
+
+    check = commands.add_parser("check", help="regression checks on stored runs")
+    check.add_argument("runs", metavar="RUN", nargs="+")
+    check.add_argument("--expect", metavar="F", help="expectations file (YAML)")
+    check.add_argument("--rerun", action="store_true",
+                       help="run the tree again with the recorded settings and compare")
+    check.add_argument("--tree", metavar="TREE", help="with --rerun: this tree file instead")
+    check.add_argument("--json", action="store_true", help="JSON output")
+
+    recover = commands.add_parser("recover", help="salvage a truncated recording")
+    recover.add_argument("broken", metavar="BROKEN")
+    recover.add_argument("-o", "--output", metavar="FIXED", required=True)
+
+    validate = commands.add_parser("validate", help="load and check a tree")
+    validate.add_argument("tree", metavar="TREE")
+    validate.add_argument("--json", action="store_true", help="JSON output")
+    return parser
+
+
+def _handlers():
+    from btlog.cli import checks, commands, replay
+
+    return {
+        "run": commands.run, "ask": commands.ask, "explain": commands.explain,
+        "show": commands.show, "timeline": commands.timeline, "sql": commands.sql,
+        "recover": commands.recover, "validate": commands.validate,
+        "replay": replay.replay, "diff": checks.diff, "check": checks.check,
+    }
+
+
+def _one_line(error: BaseException) -> str:
+    text = str(error).strip() or type(error).__name__
+    return " ".join(text.split())
+
+
+def main(argv: Sequence[str] | None = None) -> int:
+    """Run the command line; returns the exit code."""
+    parser = build_parser()
+    try:
+        args = parser.parse_args(argv)
+    except SystemExit as exit_:
+        return int(exit_.code or 0)
+    try:
+        return int(_handlers()[args.command](args) or EXIT_OK)
+    except KeyboardInterrupt:
+        print("btlog: interrupted", file=sys.stderr)
+        return 130
+    except BrokenPipeError:
+        return EXIT_OK
+    except Exception as error:  # noqa: BLE001 - the contract: one line, never a traceback
+        if os.environ.get("BTLOG_DEBUG"):
+            traceback.print_exc()
+        print(f"btlog {args.command}: {_one_line(error)}", file=sys.stderr)
+        return EXIT_BAD_INPUT
+
+
+if __name__ == "__main__":
+    sys.exit(main())

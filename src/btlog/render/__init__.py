@@ -1,0 +1,1 @@
+"""Rendering runs and trees for people: the terminal."""

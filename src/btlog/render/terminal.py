@@ -1,0 +1,100 @@
+"""Terminal rendering: a tree with its statuses, timelines, answers.
+
+Everything here returns ``rich.text.Text`` lines built from plain strings with styles,
+never from markup, so a node named ``[red]x`` or holding escape codes prints literally:
+names come from untrusted XML and are passed through ``safe`` first. Colour follows the
+console (``NO_COLOR`` is honoured by rich; ``--plain`` turns it off).
+"""
+
+from __future__ import annotations
+
+import json
+import unicodedata
+from collections.abc import Iterable
+from typing import Any
+
+from rich.console import Console
+from rich.text import Text
+
+from btlog.replay.state import State
+from btlog.status import IDLE, Status
+from btlog.tree.model import Node, Tree
+
+STATUS_STYLES = {
+    Status.IDLE: "dim",
+    Status.RUNNING: "bold yellow",
+    Status.SUCCESS: "green",
+    Status.FAILURE: "bold red",
+    Status.SKIPPED: "cyan",
+}
+
+
+def safe(text: Any) -> str:
+    """A string with control characters (escape codes, newlines) made visible."""
+    out = []
+    for char in str(text):
+        if unicodedata.category(char).startswith("C"):
+            out.append(char.encode("unicode_escape").decode("ascii"))
+        else:
+            out.append(char)
+    return "".join(out)
+
+
+def make_console(plain: bool = False, stderr: bool = False) -> Console:
+    """A console for output; ``plain`` disables colour and styling."""
+    if plain:
+        return Console(color_system=None, no_color=True, highlight=False, stderr=stderr,
+                       soft_wrap=True)
+    return Console(highlight=False, stderr=stderr, soft_wrap=True)
+
+
+def node_label(node: Node, status: Status, current: bool) -> Text:
+    """One node's line: description, type, uid, status, and a mark if current."""
+    text = Text()
+    text.append(safe(node.description), style="bold" if current else "")
+    if node.name and node.name != node.type:
+        text.append(f"  {safe(node.type)}", style="dim")
+    text.append(f"  #{node.uid}", style="dim")
+    text.append(f"  {status.name}", style=STATUS_STYLES[status])
+    if node.added_seq is not None:
+        text.append(f"  (inserted at seq {node.added_seq})", style="magenta")
+    if current:
+        text.append("  ◀ current", style="bold magenta")
+    return text
+
+
+def tree_lines(tree: Tree, state: State | None, current: Iterable[int] = ()) -> list[Text]:
+    """The tree drawn with box characters, one ``Text`` per node."""
+    marked = set(current)
+    lines: list[Text] = []
+
+    def visit(node: Node, prefix: str, last: bool, root: bool) -> None:
+        status = state.status_of(node.uid) if state is not None else IDLE
+        line = Text(prefix + ("" if root else ("└── " if last else "├── ")), style="dim")
+        line.append_text(node_label(node, status, node.uid in marked))
+        lines.append(line)
+        child_prefix = prefix if root else prefix + ("    " if last else "│   ")
+        for index, child in enumerate(node.children):
+            visit(child, child_prefix, index == len(node.children) - 1, False)
+
+    visit(tree.root, "", True, True)
+    return lines
+
+
+def blackboard_lines(state: State) -> list[Text]:
+    """The blackboard per scope (root scope shown as ``(root)``)."""
+    lines: list[Text] = []
+    for scope in sorted(state.blackboard):
+        entries = state.blackboard[scope]
+        if not entries:
+            continue
+        lines.append(Text(f"[{safe(scope) or '(root)'}]", style="bold"))
+        for key in sorted(entries):
+            value = json.dumps(entries[key], sort_keys=True, default=repr)
+            lines.append(Text(f"  {safe(key)} = {safe(value)}"))
+    return lines
+
+
+def format_ns(t_ns: int) -> str:
+    """Seconds with millisecond precision."""
+    return f"{t_ns / 1e9:.3f}s"

@@ -1,0 +1,270 @@
+"""Record a run: load the tree, build the domain's leaves, tick, record, answer live.
+
+``RunConfig`` holds everything that determines a run (tree file, domain, seed, outcomes,
+``--fail`` specs, failure rate, tick period, tick limit, live questions). It is stored in
+the recording's metadata, so ``btlog check --rerun`` can run the same thing again.
+Live questions (``--ask WHEN=QUESTION``) are answered at the tick boundary where WHEN is
+reached, with the same code that answers post hoc; "Can you …?" inserts the
+self-contained subtree into the running tree and records the mutation.
+"""
+
+from __future__ import annotations
+
+import hashlib
+import json
+import os
+import re
+import uuid
+from collections.abc import Callable
+from dataclasses import dataclass, field
+from datetime import UTC, datetime
+from pathlib import Path
+
+from btlog import SCHEMA_VERSION, __version__
+from btlog.domains import make_domain
+from btlog.domains.outcomes import FailSpec, Outcomes, OutcomesError
+from btlog.events import Subscriber
+from btlog.executor.clock import SimClock, WallClock
+from btlog.executor.engine import Executor
+from btlog.explain.questions import Answer, answer, parse_question
+from btlog.record.recorder import Recorder
+from btlog.replay.state import StateProjection
+from btlog.status import FAILURE, SUCCESS, Status
+from btlog.tree.loader import load_tree
+from btlog.tree.model import Tree
+
+DEFAULT_MAX_TICKS = 100_000
+_LIVE_MOMENT = re.compile(r"^(?:(?P<tick>tick:)(?P<n>\d+)|(?P<seq>seq:)(?P<s>\d+)|"
+                          r"(?P<num>\d+(?:\.\d*)?|\.\d+)(?P<unit>s|ms|us|ns)?)$")
+_UNIT_NS = {"s": 1e9, "ms": 1e6, "us": 1e3, "ns": 1.0}
+
+
+class RunError(ValueError):
+    """A run that cannot start (bad option or input); one line."""
+
+
+@dataclass(frozen=True)
+class LiveQuestion:
+    """``--ask WHEN=QUESTION``: WHEN is ``12.5``/``12.5s``/``1500ms``…, ``tick:N`` or
+    ``seq:N`` (answered at the end of the tick holding event N)."""
+
+    when: str
+    question: str
+    kind: str
+    value: int
+
+    @classmethod
+    def parse(cls, text: str) -> LiveQuestion:
+        """Parse ``WHEN=QUESTION``."""
+        when, sep, question = text.partition("=")
+        when, question = when.strip(), question.strip()
+        if not sep or not when or not question:
+            raise RunError(f"--ask {text!r}: expected WHEN=QUESTION, e.g. 12.5s=What are you "
+                           "doing?")
+        match = _LIVE_MOMENT.match(when)
+        if match is None:
+            raise RunError(f"--ask {text!r}: unparseable moment {when!r} (use 12.5s, 1500ms, "
+                           "tick:N or seq:N)")
+        parse_question(question)
+        if match["tick"]:
+            return cls(when, question, "tick", int(match["n"]))
+        if match["seq"]:
+            return cls(when, question, "seq", int(match["s"]))
+        ns = round(float(match["num"]) * _UNIT_NS[match["unit"] or "s"])
+        return cls(when, question, "time", ns)
+
+    def due(self, executor: Executor, next_tick_ns: int) -> bool:
+        """True when the state now is the state at WHEN."""
+        if self.kind == "tick":
+            return executor.runtime.tick >= self.value
+        if self.kind == "seq":
+            return executor.seq > self.value
+        return next_tick_ns > self.value
+
+
+@dataclass
+class RunConfig:
+    """Everything that determines a run."""
+
+    tree: str
+    domain: str = "scripted"
+    outcomes_file: str | None = None
+    outcomes: dict | None = None
+    fail: list[str] = field(default_factory=list)
+    failure_rate: float = 0.0
+    seed: int = 0
+    tick_period: float = 0.1
+    max_ticks: int = DEFAULT_MAX_TICKS
+    questions: list[str] = field(default_factory=list)
+    realtime: bool = False
+    flush_interval: float = 1.0
+
+    def load_outcomes(self) -> Outcomes:
+        """The outcomes (file or mapping) with the --fail specs and failure rate."""
+        if self.outcomes is not None:
+            outcomes = Outcomes.from_mapping(self.outcomes, "recorded outcomes")
+        elif self.outcomes_file:
+            outcomes = Outcomes.load(self.outcomes_file)
+        else:
+            outcomes = Outcomes()
+        outcomes.failures = [FailSpec.parse(spec) for spec in self.fail]
+        if not 0.0 <= self.failure_rate <= 1.0:
+            raise OutcomesError(f"--failure-rate {self.failure_rate}: must be between 0 and 1")
+        outcomes.failure_rate = self.failure_rate
+        return outcomes
+
+    def to_metadata(self, tree: Tree, run_id: str) -> dict[str, str]:
+        """The ``btlog.run`` metadata record."""
+        path = Path(self.tree)
+        data = path.read_bytes()
+        return {
+            "run_id": run_id,
+            "started_at": datetime.now(UTC).isoformat(),
+            "tree_file": self.tree,
+            "tree_file_abs": str(path.resolve()),
+            "tree_sha256": hashlib.sha256(data).hexdigest(),
+            "tree_name": tree.name,
+            "domain": self.domain,
+            "seed": str(self.seed),
+            "outcomes": json.dumps(self._outcomes_source()),
+            "outcomes_file": self.outcomes_file or "",
+            "fail": json.dumps(self.fail),
+            "failure_rate": repr(self.failure_rate),
+            "questions": json.dumps(self.questions),
+            "tick_period": repr(self.tick_period),
+            "max_ticks": str(self.max_ticks),
+            "clock": "wall" if self.realtime else "sim",
+            "btlog_version": __version__,
+            "schema_version": SCHEMA_VERSION,
+        }
+
+    def _outcomes_source(self) -> dict:
+        if self.outcomes is not None:
+            return self.outcomes
+        return self.load_outcomes().source
+
+    @classmethod
+    def from_metadata(cls, metadata: dict, tree: str | None = None) -> RunConfig:
+        """The configuration of a recorded run (for re-running it)."""
+        def loaded(key: str, default):
+            value = metadata.get(key, default)
+            return json.loads(value) if isinstance(value, str) else value
+
+        return cls(tree=tree or metadata.get("tree_file_abs") or metadata["tree_file"],
+                   domain=metadata.get("domain", "scripted"),
+                   outcomes=loaded("outcomes", {}),
+                   fail=list(loaded("fail", [])),
+                   failure_rate=float(metadata.get("failure_rate", 0.0)),
+                   seed=int(metadata.get("seed", 0)),
+                   tick_period=float(metadata.get("tick_period", 0.1)),
+                   max_ticks=int(metadata.get("max_ticks", DEFAULT_MAX_TICKS)),
+                   questions=list(loaded("questions", [])),
+                   realtime=metadata.get("clock") == "wall")
+
+
+@dataclass
+class RunResult:
+    """What a recorded run produced."""
+
+    path: Path
+    run_id: str
+    final_status: Status
+    ticks: int
+    events: int
+    answers: list[tuple[LiveQuestion, Answer, int]]
+
+
+class LiveQuestions(Subscriber):
+    """Answers the run's live questions at tick boundaries from a live state projection."""
+
+    def __init__(self, executor: Executor, questions: list[LiveQuestion],
+                 recorder: Recorder | None,
+                 on_answer: Callable[[LiveQuestion, Answer, int], None] | None) -> None:
+        self.executor = executor
+        self.pending = list(questions)
+        self.recorder = recorder
+        self.on_answer = on_answer
+        self.projection = StateProjection(executor.tree)
+        self.answered: list[tuple[LiveQuestion, Answer, int]] = []
+        executor.subscribe(self.projection)
+
+    def before_tick(self, executor: Executor) -> None:
+        """Answer every question that is due before the next tick."""
+        next_ns = executor.runtime.tick * executor.runtime.clock.period_ns
+        if not executor.runtime.clock.simulated:
+            next_ns = executor.runtime.clock.now_ns()
+        for question in [q for q in self.pending if q.due(executor, next_ns)]:
+            self.pending.remove(question)
+            self.ask(question)
+
+    def ask(self, question: LiveQuestion) -> Answer:
+        """Answer now; a "Can you …?" with a plan changes the running tree."""
+        state = self.projection.state
+        result = answer(self.projection.tree, state, question.question)
+        seq = self.executor.seq
+        if result.insertion is not None:
+            plan = result.insertion
+            self.executor.insert_after(plan.parent.uid, plan.after.uid,
+                                       self.executor.tree.node(plan.source.uid),
+                                       question.question)
+        if self.recorder is not None:
+            self.recorder.on_answer(seq, state.t_ns, self.executor.runtime.tick,
+                                    question.question, result.intent, result.text)
+        self.answered.append((question, result, seq))
+        if self.on_answer is not None:
+            self.on_answer(question, result, seq)
+        return result
+
+    def finish(self) -> None:
+        """Answer what is left at the end of the run."""
+        for question in list(self.pending):
+            self.pending.remove(question)
+            self.ask(question)
+
+
+def default_output(tree_path: str, run_id: str) -> Path:
+    """``<tree stem>-<run id>.mcap`` in the current folder."""
+    return Path(f"{Path(tree_path).stem}-{run_id}.mcap")
+
+
+def execute(config: RunConfig, output: str | os.PathLike | None = None,
+            on_answer: Callable[[LiveQuestion, Answer, int], None] | None = None,
+            on_tick: Callable[[int], None] | None = None) -> RunResult:
+    """Run ``config`` and record it; returns where the recording is and how it ended."""
+    tree = load_tree(config.tree)
+    outcomes = config.load_outcomes()
+    outcomes.check_keys(tree)
+    questions = [LiveQuestion.parse(q) for q in config.questions]
+    try:
+        domain = make_domain(config.domain, config.seed)
+    except ValueError as error:
+        raise RunError(str(error)) from None
+    if config.tick_period <= 0:
+        raise RunError(f"--tick-period {config.tick_period}: must be > 0")
+    if config.max_ticks < 1:
+        raise RunError(f"--max-ticks {config.max_ticks}: must be at least 1")
+    clock = WallClock(config.tick_period) if config.realtime else SimClock(config.tick_period)
+    executor = Executor(tree, clock=clock, leaf_factory=domain.leaf_factory(tree, outcomes))
+    run_id = uuid.uuid4().hex[:12]
+    path = Path(output) if output else default_output(config.tree, run_id)
+    attachments = [(Path(f).name, Path(f).read_bytes()) for f in tree.files]
+    recorder = Recorder(path, tree, config.to_metadata(tree, run_id), attachments,
+                        flush_interval=config.flush_interval)
+    executor.subscribe(recorder)
+    live = LiveQuestions(executor, questions, recorder, on_answer) if questions else None
+
+    def before_tick(ex: Executor) -> None:
+        if live is not None:
+            live.before_tick(ex)
+        if on_tick is not None:
+            on_tick(ex.runtime.tick)
+
+    try:
+        status = executor.run(config.max_ticks, before_tick)
+        if live is not None:
+            live.finish()
+    finally:
+        executor.close()
+    final = status if status in (SUCCESS, FAILURE) else status
+    return RunResult(path, run_id, final, executor.runtime.tick, executor.seq,
+                     live.answered if live is not None else [])
