@@ -21,7 +21,9 @@ Output, one JSON object on stdout::
   the number of the last tick, and ``halted`` is true.
 * ``root`` holds the status returned by each ``tick_once``.
 * ``error`` is null, or ``"create: <message>"`` when BT.CPP refused the XML, or
-  ``"tick N: <message>"`` when a tick threw (transitions up to the throw are kept).
+  ``"tick N: <message>"`` when a tick threw (transitions up to the throw are kept; no
+  halt is made), or ``"tick N: scripted leaf: <message>"`` when the outcomes were invalid
+  (behaviortreepy would silently turn the callback's exception into FAILURE).
 * ``other_output`` holds any line BT.CPP printed on stdout that is not a transition.
 
 Transitions are read from ``StdCoutLogger``, which prints every status change
@@ -71,7 +73,7 @@ class _StdoutCapture:
         sys.stdout.flush()
         self._libc = ctypes.CDLL(None)
         self.saved_fd = os.dup(1)
-        self._file = tempfile.TemporaryFile()
+        self._file = tempfile.TemporaryFile()  # noqa: SIM115 - closed in restore()
         os.dup2(self._file.fileno(), 1)
         self._offset = 0
         self._partial = b""
@@ -103,33 +105,40 @@ class _StdoutCapture:
         return rest
 
 
-def _make_factory(bt: Any, leaves: ScriptedLeaves) -> Any:
+def _make_factory(bt: Any, leaves: ScriptedLeaves, errors: list[str]) -> Any:
+    """Register the scripted leaves; exceptions in them are appended to ``errors``.
+
+    behaviortreepy turns an exception raised by a Python callback into a plain FAILURE
+    of the node, so the callbacks catch their own exceptions to report them.
+    """
     status = {
         "RUNNING": bt.NodeStatus.RUNNING,
         "SUCCESS": bt.NodeStatus.SUCCESS,
         "FAILURE": bt.NodeStatus.FAILURE,
     }
 
-    def on_start(node: Any) -> Any:
-        return status[leaves.start(node.name(), node.uid())]
+    def guarded(method: Any) -> Any:
+        def callback(node: Any) -> Any:
+            try:
+                result = method(node.name(), node.uid())
+            except Exception as exc:
+                errors.append(f"{method.__name__}({node.name()!r}): {exc}")
+                return bt.NodeStatus.FAILURE
+            return None if result is None else status[result]
 
-    def on_running(node: Any) -> Any:
-        return status[leaves.running(node.name(), node.uid())]
-
-    def on_halted(node: Any) -> None:
-        leaves.halted(node.name(), node.uid())
-
-    def on_condition(node: Any) -> Any:
-        return status[leaves.condition(node.name(), node.uid())]
+        return callback
 
     factory = bt.BehaviorTreeFactory()
-    factory.register_simple_stateful_action(ACTION_ID, on_start, on_running, on_halted)
-    factory.register_simple_condition(CONDITION_ID, on_condition)
+    factory.register_simple_stateful_action(
+        ACTION_ID, guarded(leaves.start), guarded(leaves.running), guarded(leaves.halted)
+    )
+    factory.register_simple_condition(CONDITION_ID, guarded(leaves.condition))
     return factory
 
 
-def run_case(xml: str, outcomes: dict[str, Any] | None, max_ticks: int,
-             tick_mode: str = "once") -> dict[str, Any]:
+def run_case(
+    xml: str, outcomes: dict[str, Any] | None, max_ticks: int, tick_mode: str = "once"
+) -> dict[str, Any]:
     """Run ``xml`` in BT.CPP for at most ``max_ticks`` ticks; return the result dict.
 
     Must run in a process of its own: it redirects file descriptor 1 while BT.CPP runs and
@@ -158,10 +167,11 @@ def run_case(xml: str, outcomes: dict[str, Any] | None, max_ticks: int,
             else:
                 transitions.append([tick, *parsed])
 
+    callback_errors: list[str] = []
     capture = _StdoutCapture()
     keep_alive: list[Any] = []
     try:
-        factory = _make_factory(bt, leaves)
+        factory = _make_factory(bt, leaves, callback_errors)
         try:
             tree = factory.create_tree_from_text(xml)
         except Exception as exc:
@@ -181,6 +191,9 @@ def run_case(xml: str, outcomes: dict[str, Any] | None, max_ticks: int,
                 return result
             collect(capture.read_lines(), tick)
             result["root"].append(last)
+            if callback_errors:
+                result["error"] = f"tick {tick}: scripted leaf: {callback_errors[0]}"
+                return result
             if last in ("SUCCESS", "FAILURE"):
                 break
         if last not in ("SUCCESS", "FAILURE"):
@@ -199,13 +212,17 @@ def run_case(xml: str, outcomes: dict[str, Any] | None, max_ticks: int,
 _KEEP: list[Any] = []  # trees are never destroyed: main() leaves with os._exit
 
 
-MAX_OUTPUT_BYTES = 256 * 1024 * 1024
+MAX_OUTPUT_BYTES = 64 * 1024 * 1024
 
 
 def _limit_output_size() -> None:
-    """Cap the size of files this process writes: a livelock (see README notes in
-    check_oracle) would otherwise fill the disk with logger lines before the parent's
-    timeout; exceeding the cap kills the process (SIGXFSZ), which counts as a crash."""
+    """Cap the size of the files this process writes.
+
+    Some trees livelock inside one ``tick_once`` (e.g. a ReactiveSequence of two
+    ``Repeat``s of synchronous children: each halts the other and re-emits the wake-up
+    signal), and the logger would fill the disk before the parent's timeout. Going over
+    the cap kills the process (SIGXFSZ), which the runner reports as a crash.
+    """
     try:
         import resource
 
@@ -218,8 +235,12 @@ def main() -> None:
     """Read a case as JSON on stdin, run it, print the result as JSON and exit."""
     _limit_output_size()
     case = json.loads(sys.stdin.read())
-    result = run_case(case["xml"], case.get("outcomes"), int(case.get("max_ticks", 20)),
-                      case.get("tick_mode", "once"))
+    result = run_case(
+        case["xml"],
+        case.get("outcomes"),
+        int(case.get("max_ticks", 20)),
+        case.get("tick_mode", "once"),
+    )
     sys.stdout.write(json.dumps(result) + "\n")
     sys.stdout.flush()
     os._exit(0)

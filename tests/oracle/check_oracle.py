@@ -20,15 +20,19 @@ import sys
 import time
 import xml.etree.ElementTree as ET
 from concurrent.futures import ThreadPoolExecutor
+from typing import Any
 
 if __package__:
     from .random_trees import Case, generate
     from .runner import run_oracle
 else:  # run as a script
-    sys.path.insert(0, os.path.dirname(os.path.dirname(os.path.dirname(os.path.abspath(
-        __file__)))))
+    sys.path.insert(0, os.path.dirname(os.path.dirname(os.path.dirname(os.path.abspath(__file__)))))
     from tests.oracle.random_trees import Case, generate
     from tests.oracle.runner import run_oracle
+
+
+_SIZE_BINS = [(1, 4), (5, 9), (10, 19), (20, 29), (30, 40), (41, 60)]
+_TICK_BINS = [(1, 1), (2, 2), (3, 5), (6, 10), (11, 20), (21, 30)]
 
 
 def _describe(values: list[int]) -> str:
@@ -36,22 +40,24 @@ def _describe(values: list[int]) -> str:
         return "n/a"
     ordered = sorted(values)
     pct = [ordered[min(len(ordered) - 1, int(q * len(ordered)))] for q in (0.1, 0.5, 0.9)]
-    return (f"min {ordered[0]}, p10 {pct[0]}, median {pct[1]}, p90 {pct[2]}, "
-            f"max {ordered[-1]}, mean {statistics.mean(ordered):.1f}")
+    return (
+        f"min {ordered[0]}, p10 {pct[0]}, median {pct[1]}, p90 {pct[2]}, "
+        f"max {ordered[-1]}, mean {statistics.mean(ordered):.1f}"
+    )
 
 
-def _histogram(values: list[int], edges: list[int]) -> str:
-    counts = collections.Counter()
+def _histogram(values: list[int], bins: list[tuple[int, int]]) -> str:
+    counts: collections.Counter = collections.Counter()
     for value in values:
-        label = f">{edges[-1]}"
-        for low, high in zip(edges, edges[1:], strict=False):
+        label = f">{bins[-1][1]}"
+        for low, high in bins:
             if low <= value <= high:
-                label = f"{low}-{high}"
+                label = f"{low}" if low == high else f"{low}-{high}"
                 break
         counts[label] += 1
-    labels = [f"{low}-{high}" for low, high in zip(edges, edges[1:], strict=False)]
-    labels.append(f">{edges[-1]}")
-    return "  ".join(f"{label}:{counts[label]}" for label in labels if counts[label])
+    labels = [f"{low}" if low == high else f"{low}-{high}" for low, high in bins]
+    labels.append(f">{bins[-1][1]}")
+    return "  ".join(f"{label}: {counts[label]}" for label in labels if counts[label])
 
 
 def _tags(case: Case) -> collections.Counter:
@@ -67,6 +73,74 @@ def _tags(case: Case) -> collections.Counter:
     return tags
 
 
+_HALTING_PARENTS = (
+    "ReactiveSequence",
+    "ReactiveFallback",
+    "Parallel",
+    "ParallelAll",
+    "WhileDoElse",
+    "Switch2",
+    "Switch3",
+)
+
+
+def _structure(case: Case) -> tuple[dict[str, str], dict[str, ET.Element]]:
+    """Map each node name to its parent's name, and each name to its element."""
+    root = ET.fromstring(case.xml)
+    parent: dict[str, str] = {}
+    elems: dict[str, ET.Element] = {}
+    for elem in root.iter():
+        name = elem.get("name")
+        if name is None or elem.tag in ("root", "BehaviorTree"):
+            continue
+        elems[name] = elem
+        for child in elem:
+            if child.get("name") is not None:
+                parent[child.get("name")] = name
+    for elem in elems.values():  # a subtree's body hangs under its SubTree node
+        if elem.tag == "SubTree":
+            for tree in root.iter("BehaviorTree"):
+                if tree.get("ID") == elem.get("ID") and len(tree) and tree[0].get("name"):
+                    parent[tree[0].get("name")] = elem.get("name")
+    return parent, elems
+
+
+def _features(case: Case, result: dict[str, Any]) -> set[str]:
+    """Name the interesting behaviours visible in one run's transitions."""
+    parent, elems = _structure(case)
+    transitions = result["transitions"]
+    last = result["ticks"] if result["halted"] else None  # skip the final halt_tree
+    halted = {
+        name
+        for tick, name, prev, new in transitions
+        if prev == "RUNNING" and new == "IDLE" and tick != last
+    }
+    starts: collections.Counter = collections.Counter()
+    logged: set[str] = set()
+    for _, name, prev, _ in transitions:
+        logged.add(name)
+        if prev == "IDLE":
+            starts[name] += 1
+    found: set[str] = set()
+    for name, elem in elems.items():
+        kids = [p for p, q in parent.items() if q == name]
+        if elem.tag == "RetryUntilSuccessful" and any(starts[k] >= 2 for k in kids):
+            found.add("RetryUntilSuccessful made 2+ attempts")
+        if elem.tag == "Repeat" and any(starts[k] >= 2 for k in kids):
+            found.add("Repeat ran its child 2+ times")
+        if elem.tag == "KeepRunningUntilFailure" and any(starts[k] >= 2 for k in kids):
+            found.add("KeepRunningUntilFailure ran its child 2+ times")
+        skippable = "_skipIf" in elem.attrib or "_while" in elem.attrib
+        if skippable and name not in logged and parent.get(name) in logged:
+            found.add("node with _skipIf/_while silent while its parent ran (likely skipped)")
+        if elem.tag == "SubTree" and name in logged:
+            found.add("SubTree ran")
+        reactive = elem.tag in _HALTING_PARENTS and starts[name] > 0
+        if reactive and any(kid in halted for kid in kids):
+            found.add(f"{elem.tag} halted a running child")
+    return found
+
+
 def _error_kind(message: str) -> str:
     message = re.sub(r"\s+", " ", message)
     return re.sub(r"\d+", "N", message)[:110]
@@ -80,14 +154,21 @@ def main(argv: list[str] | None = None) -> int:
     parser.add_argument("--jobs", type=int, default=max(1, os.cpu_count() or 1))
     parser.add_argument("--timeout", type=float, default=20)
     parser.add_argument("--show-errors", action="store_true")
+    parser.add_argument("--max-depth", type=int, default=4)
+    parser.add_argument("--max-children", type=int, default=4)
     args = parser.parse_args(argv)
 
     seeds = list(range(args.start, args.start + args.seeds))
-    cases = {seed: generate(seed) for seed in seeds}
+    cases = {seed: generate(seed, args.max_depth, args.max_children) for seed in seeds}
     started = time.monotonic()
     with ThreadPoolExecutor(max_workers=args.jobs) as pool:
-        results = dict(zip(seeds, pool.map(
-            lambda s: run_oracle(cases[s], timeout=args.timeout), seeds), strict=True))
+        results = dict(
+            zip(
+                seeds,
+                pool.map(lambda s: run_oracle(cases[s], timeout=args.timeout), seeds),
+                strict=True,
+            )
+        )
     elapsed = time.monotonic() - started
 
     crashed = [s for s in seeds if results[s] is None]
@@ -123,6 +204,7 @@ def main(argv: list[str] | None = None) -> int:
             seen.add("node re-activated within one tick (retry/repeat/reactive/wake-up)")
         if result["halted"]:
             seen.add("final halt_tree")
+        seen |= _features(cases[s], result)
         names_logged = {name for _, name, _, _ in result["transitions"]}
         silent = [n for n in cases[s].names if n not in names_logged]
         if silent:
@@ -141,9 +223,9 @@ def main(argv: list[str] | None = None) -> int:
         for s in errored:
             print(f"    seed {s}: {results[s]['error']!r}")
     print(f"tree size (nodes):   {_describe(sizes)}")
-    print(f"                     {_histogram(sizes, [1, 4, 5, 10, 20, 30, 40, 60])}")
+    print(f"                     {_histogram(sizes, _SIZE_BINS)}")
     print(f"ticks run:           {_describe(ticks)}")
-    print(f"                     {_histogram(ticks, [1, 1, 2, 5, 10, 20, 30])}")
+    print(f"                     {_histogram(ticks, _TICK_BINS)}")
     print(f"transitions per run: {_describe(n_trans)}")
     print(f"final root status:   {dict(final)}")
     print("transition kinds (all clean runs):")

@@ -47,13 +47,13 @@ ACTION_ID = "ScriptedAction"
 CONDITION_ID = "ScriptedCondition"
 
 _LEAVES = [
-    ("action", 52),
-    ("condition", 15),
+    ("action", 58),
+    ("condition", 13),
     ("always_success", 5),
-    ("always_failure", 4),
-    ("script", 10),
-    ("script_condition", 8),
-    ("set_blackboard", 6),
+    ("always_failure", 3),
+    ("script", 9),
+    ("script_condition", 7),
+    ("set_blackboard", 5),
 ]
 
 _COMPOSITES = [
@@ -72,7 +72,7 @@ _COMPOSITES = [
     ("ForceSuccess", 3),
     ("ForceFailure", 3),
     ("Repeat", 4),
-    ("RetryUntilSuccessful", 5),
+    ("RetryUntilSuccessful", 6),
     ("KeepRunningUntilFailure", 2),
     ("RunOnce", 3),
     ("Precondition", 4),
@@ -153,6 +153,7 @@ class _Generator:
         self.names: list[str] = []
         self.nodes_outcomes: dict[str, list[dict[str, Any]]] = {}
         self.subtrees: list[ET.Element] = []
+        self.fail_first = False  # the next scripted leaf starts with failures (under a Retry)
 
     # -- helpers ---------------------------------------------------------------------------
 
@@ -190,27 +191,31 @@ class _Generator:
 
     def action_outcomes(self, name: str) -> None:
         rng = self.rng
-        if rng.random() < 0.2:
+        fail_first, self.fail_first = self.fail_first, False
+        if not fail_first and rng.random() < 0.2:
             return  # use the default entry
         entries = []
-        for _ in range(rng.choice([1, 1, 2, 2, 3])):
-            status = "SUCCESS" if rng.random() < 0.6 else "FAILURE"
+        for i in range(rng.choice([1, 1, 2, 2, 3])):
+            p_success = 0.2 if fail_first and i < 2 else 0.72
+            status = "SUCCESS" if rng.random() < p_success else "FAILURE"
             entries.append({"status": status, "ticks": rng.choice([0, 0, 1, 1, 1, 2, 2, 3, 4])})
         self.nodes_outcomes[name] = entries
 
     def condition_outcomes(self, name: str) -> None:
         rng = self.rng
-        if rng.random() < 0.15:
+        fail_first, self.fail_first = self.fail_first, False
+        if not fail_first and rng.random() < 0.15:
             return
         entries = []
-        for _ in range(rng.choice([1, 1, 2, 3, 4])):
-            entries.append({"status": "SUCCESS" if rng.random() < 0.6 else "FAILURE"})
+        for i in range(rng.choice([1, 1, 2, 3, 4])):
+            p_success = 0.2 if fail_first and i < 2 else 0.7
+            entries.append({"status": "SUCCESS" if rng.random() < p_success else "FAILURE"})
         self.nodes_outcomes[name] = entries
 
     def decorate(self, elem: ET.Element, variables: list[str], can_skip: bool = True) -> None:
         """Attach random pre/post-condition scripts to ``elem``."""
         rng = self.rng
-        if rng.random() < 0.18:
+        if rng.random() < 0.14:
             attr = rng.choice(_PRE if can_skip else ["_successIf", "_failureIf"])
             elem.set(attr, self.cond_expr(variables))
         if rng.random() < 0.15:
@@ -245,20 +250,23 @@ class _Generator:
             elem = ET.Element("SetBlackboard", name=name, value=value, output_key="v")
         return elem
 
-    def children(self, parent: ET.Element, count: int, depth: int,
-                 variables: list[str]) -> None:
+    def children(self, parent: ET.Element, count: int, depth: int, variables: list[str]) -> None:
         for _ in range(count):
             parent.append(self.node(depth + 1, variables))
 
-    def node(self, depth: int, variables: list[str], force_composite: bool = False
-             ) -> ET.Element:
+    def node(self, depth: int, variables: list[str], force_composite: bool = False) -> ET.Element:
         rng = self.rng
         p_leaf = 1.0 if depth >= self.max_depth else min(0.9, 0.1 + 0.18 * (depth - 1))
         if not force_composite and rng.random() < p_leaf:
             elem = self.leaf(variables)
             self.decorate(elem, variables)
             return elem
-        kind = _pick(rng, _COMPOSITES)
+        if depth <= 1:  # the body of a tree: a control node with several children
+            kind = _pick(
+                rng, [(k, w) for k, w in _COMPOSITES if k not in _DECORATORS and k != "SubTree"]
+            )
+        else:
+            kind = _pick(rng, _COMPOSITES)
         if kind == "SubTree" and (len(self.subtrees) >= 3 or depth >= self.max_depth):
             kind = "Sequence"
         name = self.name(kind)
@@ -268,13 +276,15 @@ class _Generator:
             if kind == "Repeat":
                 elem.set("num_cycles", str(rng.randint(1, 3)))
             elif kind == "RetryUntilSuccessful":
-                elem.set("num_attempts", str(rng.randint(1, 3)))
+                elem.set("num_attempts", str(rng.choice([1, 2, 2, 3, 3])))
+                self.fail_first = True
             elif kind == "RunOnce":
                 elem.set("then_skip", rng.choice(["true", "false"]))
             elif kind == "Precondition":
                 elem.set("if", self.cond_expr(variables))
                 elem.set("else", rng.choice(["FAILURE", "FAILURE", "SUCCESS", "SKIPPED"]))
             self.children(elem, 1, depth, variables)
+            self.fail_first = False
         elif kind == "SubTree":
             self.subtree(elem, depth)
         elif kind in ("IfThenElse", "WhileDoElse"):
@@ -298,14 +308,15 @@ class _Generator:
                 elem.set(f"case_{i}", value)
             self.children(elem, cases + 1, depth, variables)
         else:
-            count = rng.randint(1 if kind != "Parallel" else 2, n_max)
+            count = rng.randint(2 if kind == "Parallel" or depth <= 1 else 1, n_max)
             if kind == "Parallel":
                 elem.set("success_count", str(self.threshold(count, default=-1)))
                 elem.set("failure_count", str(self.threshold(count, default=1)))
             elif kind == "ParallelAll":
                 elem.set("max_failures", str(self.threshold(count, default=1)))
             self.children(elem, count, depth, variables)
-        self.decorate(elem, variables, can_skip=depth > 1)
+        if depth > 1:
+            self.decorate(elem, variables)
         return elem
 
     def threshold(self, count: int, default: int) -> int:
@@ -350,9 +361,9 @@ class _Generator:
         self.names += ["init", "initv"]
         parent = top
         roll = rng.random()
-        if roll < 0.25:
+        if roll < 0.3:
             parent = ET.SubElement(top, "Repeat", name="loop", num_cycles=str(rng.randint(2, 4)))
-        elif roll < 0.4:
+        elif roll < 0.45:
             parent = ET.SubElement(top, "KeepRunningUntilFailure", name="loop")
         if parent is not top:
             self.names.append("loop")

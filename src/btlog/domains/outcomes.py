@@ -112,7 +112,7 @@ class Outcomes:
     default: Outcome = field(default_factory=lambda: _parse_entry(DEFAULT_ACTION, Outcome(),
                                                                     "default"))
     condition_default: Outcome = field(default_factory=Outcome)
-    scripts: dict[str, list[Outcome]] = field(default_factory=dict)
+    scripts: dict[str, list[Any]] = field(default_factory=dict)
     failures: list[FailSpec] = field(default_factory=list)
     failure_rate: float = 0.0
     source: dict = field(default_factory=dict)
@@ -131,7 +131,7 @@ class Outcomes:
         outcomes = cls(source=data)
         if "default" in data:
             outcomes.default = _parse_entry(data["default"], Outcome(), f"{where}: default")
-            outcomes.condition_default = outcomes.default
+            outcomes.condition_default = Outcome(outcomes.default.status)
         nodes = data.get("nodes") or {}
         if not isinstance(nodes, dict):
             raise OutcomesError(f"{where}: nodes must be a mapping of node keys")
@@ -139,9 +139,9 @@ class Outcomes:
             entries = value if isinstance(value, list) else [value]
             if not entries:
                 raise OutcomesError(f"{where}: {key!r} has an empty list")
-            outcomes.scripts[str(key)] = [
+            for i, entry in enumerate(entries):
                 _parse_entry(entry, outcomes.default, f"{where}: {key!r}[{i}]")
-                for i, entry in enumerate(entries)]
+            outcomes.scripts[str(key)] = entries
         return outcomes
 
     @classmethod
@@ -167,11 +167,13 @@ class Outcomes:
                 raise OutcomesError(f"outcomes key {key!r} matches no node of the tree")
 
     def plan_for(self, node: Node, tree: Tree) -> list[Outcome]:
-        """The per-activation script of a node (the last entry repeats)."""
+        """The per-activation script of a node (the last entry repeats). A condition's
+        entries take no RUNNING time unless they give one."""
+        base = self.condition_default if node.kind == CONDITION else self.default
         for key in (node.path, node.name, None if node.name else node.type):
             if key and key in self.scripts and node in tree.find(key):
-                return self.scripts[key]
-        return [self.condition_default if node.kind == CONDITION else self.default]
+                return [_parse_entry(entry, base, key) for entry in self.scripts[key]]
+        return [base]
 
     def forced_failures(self, node: Node, tree: Tree) -> set[int]:
         """Activations of ``node`` that --fail makes fail."""

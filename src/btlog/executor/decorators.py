@@ -147,7 +147,8 @@ class RunOnce(DecoratorBehavior):
 
 class Precondition(DecoratorBehavior):
     """While the child is not running, evaluate ``if``: false returns ``else`` (default
-    FAILURE) without ticking the child."""
+    FAILURE) without ticking the child. As in BT.CPP, a halt does not clear the memory that
+    the child was running, so the next activation skips the ``if`` check once."""
 
     def __init__(self, *args) -> None:
         super().__init__(*args)

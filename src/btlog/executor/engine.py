@@ -204,8 +204,16 @@ class Executor:
         return status
 
     def halt(self) -> None:
-        """Halt the whole tree (halt transitions are reported in the current tick)."""
+        """Halt the whole tree as BT.CPP's ``haltTree``: halt the root, then every node in
+        pre-order (so ``_onHalted`` runs everywhere), then reset the root. The transitions
+        are reported in the current tick."""
         self.root.halt_node()
+        stack = [self.root]
+        while stack:
+            behavior = stack.pop()
+            behavior.halt_node()
+            stack.extend(reversed(behavior.children))
+        self.root.reset_status()
 
     def close(self) -> None:
         """Tell subscribers the run is over."""
