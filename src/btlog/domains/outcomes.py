@@ -205,7 +205,15 @@ class ScriptedLeaf(StatefulAction):
         self.remaining = 0
         self.deadline = 0
 
+    def tick(self) -> Status:
+        """Conditions are evaluated afresh on every tick that finds them not RUNNING."""
+        if self.kind == CONDITION and self.status is not RUNNING:
+            return self.on_start()
+        return super().tick()
+
     def on_start(self) -> Status:
+        """Start an activation: take its scripted outcome (forced to FAILURE by --fail or
+        the failure rate)."""
         self.activations += 1
         outcome = self.plan[min(self.activations, len(self.plan)) - 1]
         if self.activations in self.forced or (

@@ -12,6 +12,8 @@ returns RUNNING early and the executor ticks the root again within the same tick
 
 from __future__ import annotations
 
+import re
+
 from btlog.executor.behavior import Behavior, ControlBehavior, NodeExecutionError
 from btlog.status import FAILURE, IDLE, RUNNING, SKIPPED, SUCCESS, Status
 
@@ -405,18 +407,20 @@ def _text(value: object) -> str:
     return str(value)
 
 
+_INT = re.compile(r"^[-+]?\d+$")
+_REAL = re.compile(r"^[-+]?(?:\d+\.?\d*|\.\d+)(?:[eE][-+]?\d+)?$")
+
+
 def _switch_equal(a: str, b: str) -> bool:
+    """BT.CPP's comparison: equal strings, else equal integers, else reals within the
+    float epsilon (numbers parsed strictly, as std::from_chars does)."""
     if a == b:
         return True
-    try:
-        if int(a) == int(b):
-            return True
-    except ValueError:
-        pass
-    try:
+    if _INT.match(a) and _INT.match(b) and int(a) == int(b):
+        return True
+    if _REAL.match(a) and _REAL.match(b):
         return abs(float(a) - float(b)) <= 1.1920928955078125e-07
-    except ValueError:
-        return False
+    return False
 
 
 def switch_class(cases: int) -> type[Switch]:

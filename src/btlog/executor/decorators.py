@@ -9,7 +9,7 @@ IDLE they instead signal a wake-up and return RUNNING, and the executor re-ticks
 
 from __future__ import annotations
 
-from btlog.executor.behavior import Behavior, DecoratorBehavior
+from btlog.executor.behavior import Behavior, DecoratorBehavior, NodeExecutionError
 from btlog.executor.script import compile_script, truthy
 from btlog.status import FAILURE, IDLE, RUNNING, SKIPPED, SUCCESS, Status
 
@@ -159,7 +159,7 @@ class Precondition(DecoratorBehavior):
     def tick(self) -> Status:
         otherwise = self.get_input("else", "status")
         if self._script is None:
-            return otherwise
+            raise NodeExecutionError(self.node, "missing port 'if'")
         if not self.children_running:
             self.children_running = truthy(self._run_script(self._script))
         if not self.children_running:
@@ -210,9 +210,11 @@ class Timeout(DecoratorBehavior):
     def tick(self) -> Status:
         clock = self.runtime.clock
         if self.deadline is None:
-            self.deadline = clock.now_ns() + self.get_input("msec", "int") * 1_000_000
+            msec = self.get_input("msec", "int")
+            # As in BT.CPP, msec 0 starts no timer: the child is never timed out.
+            self.deadline = clock.now_ns() + msec * 1_000_000 if msec > 0 else -1
             self.set_status(RUNNING)
-        elif clock.now_ns() >= self.deadline:
+        elif self.deadline >= 0 and clock.now_ns() >= self.deadline:
             self.deadline = None
             self.reset_child()
             return FAILURE

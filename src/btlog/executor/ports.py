@@ -13,8 +13,8 @@ from typing import Any
 
 from btlog.status import Status
 
-TRUE_WORDS = {"true", "1", "yes", "on"}
-FALSE_WORDS = {"false", "0", "no", "off"}
+TRUE_WORDS = {"true", "True", "TRUE", "1"}
+FALSE_WORDS = {"false", "False", "FALSE", "0"}
 
 
 class PortValueError(ValueError):
@@ -34,10 +34,9 @@ def convert(value: Any, type_name: str) -> Any:
         if type_name in ("float", "double"):
             return float(text)
         if type_name == "bool":
-            lowered = text.lower()
-            if lowered in TRUE_WORDS:
+            if text in TRUE_WORDS:
                 return True
-            if lowered in FALSE_WORDS:
+            if text in FALSE_WORDS:
                 return False
             raise ValueError
         if type_name == "json":

@@ -13,6 +13,7 @@ A script runs in an environment with ``get(key)``, ``set(key, value)``, ``exists
 
 from __future__ import annotations
 
+import math
 import re
 from collections.abc import Callable
 from functools import lru_cache
@@ -106,7 +107,8 @@ def _compare(op: str) -> Callable[[Any, Any], bool]:
 def _divide(a: Any, b: Any) -> Any:
     a, b = _to_number(a), _to_number(b)
     if b == 0:
-        raise ScriptError("division by zero")
+        # BT.CPP divides as doubles: inf, -inf or nan.
+        return math.copysign(math.inf, a) if a else math.nan
     if isinstance(a, int) and isinstance(b, int) and a % b == 0:
         return a // b
     return a / b
@@ -129,8 +131,10 @@ _BINARY: dict[str, Callable[[Any, Any], Any]] = {
     "|": lambda a, b: int(_to_number(a)) | int(_to_number(b)),
     "^": lambda a, b: int(_to_number(a)) ^ int(_to_number(b)),
 }
-_PRECEDENCE = [("||",), ("&&",), ("|",), ("^",), ("&",), ("==", "!="),
-               ("<", "<=", ">", ">="), ("+", "-", ".."), ("*", "/")]
+# BT.CPP's order, loosest first: logic, comparisons, then bitwise binding tighter than
+# comparisons (unlike C), then arithmetic.
+_PRECEDENCE = [("||",), ("&&",), ("==", "!=", "<", "<=", ">", ">="), ("|", "^"), ("&",),
+               ("+", "-", ".."), ("*", "/")]
 
 
 def _text(value: Any) -> str:

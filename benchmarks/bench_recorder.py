@@ -1,0 +1,138 @@
+"""Recorder throughput: how many events per second ``Recorder`` takes, and the file size.
+
+The recorder is fed directly, as the executor feeds it, with synthetic ticks of
+``--per-tick`` status changes (uids spread over a 200-node tree, statuses cycling through
+IDLE→RUNNING→SUCCESS→IDLE) and one tick record per tick: ``on_status`` + ``on_tick`` +
+encoding + compression + writing, and nothing of a tree's execution. The loop that makes
+the calls costs something too; it is timed alone with a no-op subscriber, and the
+"recorder-only" figure subtracts it. Each chunk compression is measured in turn (lz4 only
+when the ``lz4`` package is installed).
+
+    python benchmarks/bench_recorder.py            # 2,000,000 events per compression
+    python benchmarks/bench_recorder.py --smoke    # a tiny run, to check the script works
+
+It prints figures; it asserts nothing.
+"""
+
+from __future__ import annotations
+
+import argparse
+import os
+import tempfile
+import time
+from pathlib import Path
+
+from mcap.writer import CompressionType
+
+from btlog.events import Subscriber, TickRecord
+from btlog.record.recorder import Recorder
+from btlog.status import FAILURE, IDLE, RUNNING, SUCCESS
+from btlog.tree.model import ACTION, CONTROL, Node, Tree
+
+CYCLE = ((IDLE, RUNNING), (RUNNING, SUCCESS), (SUCCESS, IDLE), (RUNNING, FAILURE))
+
+
+def synthetic_tree(leaves: int = 200) -> Tree:
+    """A Sequence root with ``leaves`` action children (uids 1..leaves+1)."""
+    root = Node(uid=1, type="Sequence", name="root", kind=CONTROL, path="root")
+    for uid in range(2, leaves + 2):
+        child = Node(uid=uid, type="Act", name=f"a{uid}", kind=ACTION, parent=root,
+                     path=f"a{uid}")
+        root.children.append(child)
+    return Tree(root)
+
+
+def compressions() -> list[CompressionType]:
+    """The chunk compressions the installed mcap package can write."""
+    found = [CompressionType.ZSTD, CompressionType.NONE]
+    try:
+        import lz4.frame  # noqa: F401
+    except ImportError:
+        return found
+    return [CompressionType.ZSTD, CompressionType.LZ4, CompressionType.NONE]
+
+
+def tick_patterns(per_tick: int, count: int = 8) -> list[list[tuple]]:
+    """``count`` different ticks, each ``per_tick`` (uid, prev, status) changes."""
+    return [[(2 + (i * 7 + k) % 200, *CYCLE[(i + k) & 3]) for i in range(per_tick)]
+            for k in range(count)]
+
+
+def feed(subscriber: Subscriber, events: int, per_tick: int) -> None:
+    """Deliver ``events`` status changes in ticks of ``per_tick`` (1 µs apart in sim time),
+    calling ``on_status`` and ``on_tick`` as the executor does."""
+    on_status, on_tick = subscriber.on_status, subscriber.on_tick
+    patterns = tick_patterns(per_tick)
+    seq, tick = 0, 0
+    while seq < events:
+        tick += 1
+        start = seq * 1000
+        for uid, prev, new in patterns[tick % len(patterns)]:
+            on_status(seq, seq * 1000, tick, uid, prev, new)
+            seq += 1
+        on_tick(TickRecord(tick, start, seq * 1000, RUNNING))
+
+
+def best_time(run, repeat: int) -> tuple[float, float]:
+    """The fastest of ``repeat`` runs of ``run()``: (wall seconds, CPU seconds of this
+    process). On a shared machine the CPU time is the steadier figure."""
+    wall = cpu = float("inf")
+    for _ in range(repeat):
+        start, start_cpu = time.perf_counter(), time.process_time()
+        run()
+        wall = min(wall, time.perf_counter() - start)
+        cpu = min(cpu, time.process_time() - start_cpu)
+    return wall, cpu
+
+
+def measure(path: Path, compression: CompressionType, events: int, per_tick: int,
+            flush_interval: float, repeat: int, max_tick_events: int | None = None,
+            ) -> tuple[float, float, int]:
+    """(best wall seconds, best CPU seconds, file bytes) for recordings of ``events``
+    synthetic events."""
+    tree = synthetic_tree()
+
+    def run() -> None:
+        recorder = Recorder(path, tree, {"domain": "benchmark"},
+                            flush_interval=flush_interval, compression=compression,
+                            max_tick_events=max_tick_events)
+        feed(recorder, events, per_tick)
+        recorder.close()
+
+    return *best_time(run, repeat), path.stat().st_size
+
+
+def main() -> None:
+    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser.add_argument("--events", type=int, default=2_000_000)
+    parser.add_argument("--per-tick", type=int, default=50)
+    parser.add_argument("--flush-interval", type=float, default=1.0)
+    parser.add_argument("--repeat", type=int, default=3, help="runs per figure; best is shown")
+    parser.add_argument("--max-tick-events", type=int, default=None,
+                        help="the Recorder's per-tick buffer bound (default: none)")
+    parser.add_argument("--smoke", action="store_true", help="a tiny run (10,000 events)")
+    args = parser.parse_args()
+    events = 10_000 if args.smoke else args.events
+    repeat = 1 if args.smoke else args.repeat
+    print(f"{events:,} events in ticks of {args.per_tick}, flush interval "
+          f"{args.flush_interval} s, max_tick_events {args.max_tick_events}, "
+          f"best of {repeat}")
+    driver_wall, driver_cpu = best_time(lambda: feed(Subscriber(), events, args.per_tick),
+                                        repeat)
+    print(f"  driver alone (no-op subscriber): {events / driver_wall:,.0f} calls/s wall, "
+          f"{events / driver_cpu:,.0f} calls/s CPU")
+    print("  compression   events/s wall   events/s CPU   recorder-only CPU   MB     B/event")
+    with tempfile.TemporaryDirectory() as folder:
+        for compression in compressions():
+            path = Path(folder) / f"bench-{compression.name.lower()}.mcap"
+            wall, cpu, size = measure(path, compression, events, args.per_tick,
+                                      args.flush_interval, repeat, args.max_tick_events)
+            own = cpu - driver_cpu
+            print(f"  {compression.name:<11} {events / wall:>13,.0f}   {events / cpu:>12,.0f}   "
+                  f"{events / own if own > 0 else float('inf'):>17,.0f}   "
+                  f"{size / 1e6:6.2f}   {size / events:7.2f}")
+            os.remove(path)
+
+
+if __name__ == "__main__":
+    main()

@@ -1,0 +1,299 @@
+"""The recorder: a subscriber that appends a run's events to an MCAP file as they happen.
+
+The cost that matters is per event, and an MCAP message costs microseconds while a Python
+list append costs tens of nanoseconds. So the hot path only appends rows: ``on_status``
+and ``on_write`` build one tuple each, and ``on_tick`` turns the tick's rows into one
+``/btlog/events`` message (orjson encodes the rows in one call). Grouping changes nothing
+for a reader: every row keeps its own ``seq``, ``t_ns`` and ``tick``.
+
+Crash safety comes from flushing by wall time: when ``flush_interval`` seconds have
+passed since the last flush, the tick records are written and the MCAP writer's chunk is
+closed and flushed to the file. Chunks are the unit a reader can recover from a cut file,
+so after ``kill -9`` at most the last interval is lost. ``close()`` writes the rest and the
+summary (the index that makes the file seekable).
+
+What the file holds and how each message is laid out is ``btlog.record.format``.
+"""
+
+from __future__ import annotations
+
+import math
+import os
+import time
+import uuid
+from collections.abc import Iterable, Mapping
+from datetime import UTC, datetime
+from typing import Any
+
+import orjson
+from mcap.well_known import MessageEncoding, SchemaEncoding
+from mcap.writer import CompressionType, Writer
+
+import btlog
+from btlog.events import Subscriber, TickRecord, TreeMutation
+from btlog.record import format as fmt
+from btlog.record.schemas import schema_text
+from btlog.status import STATUS_NAMES, Status
+from btlog.tree.model import Tree
+
+#: Chunk compression of new recordings (see benchmarks/bench_recorder.py for the figures).
+DEFAULT_COMPRESSION = CompressionType.ZSTD
+#: A suggested ``max_tick_events``: write a tick's events in parts past this many.
+MAX_BUFFERED_EVENTS = 50_000
+#: The MCAP chunk size: a chunk is also closed when it grows past this many bytes.
+CHUNK_SIZE = 4 * 1024 * 1024
+XML_MEDIA_TYPE = "application/xml"
+
+_INT_MIN = -(2**63)
+_INT_LIMIT = 2**64
+
+
+def json_value(value: Any) -> Any:
+    """``value`` if orjson can encode it, else its ``repr`` (never raises).
+
+    Plain scalars pass at once; anything else is encoded now and kept as an
+    ``orjson.Fragment``: the tick's message does not encode it again, and a container
+    the node mutates later is recorded as it was when written.
+    """
+    kind = type(value)
+    if kind is str or kind is bool or value is None:
+        return value
+    if kind is int:
+        return value if _INT_MIN <= value < _INT_LIMIT else _safe_repr(value)
+    if kind is float:
+        return value if math.isfinite(value) else _safe_repr(value)
+    try:
+        return orjson.Fragment(orjson.dumps(value))
+    except Exception:  # not JSON (TypeError), or a value whose own code fails
+        return _safe_repr(value)
+
+
+def _safe_repr(value: Any) -> str:
+    try:
+        return repr(value)
+    except Exception:  # a broken __repr__ must not stop the run
+        return f"<{type(value).__name__} object>"
+
+
+def run_metadata(metadata: Mapping[str, Any]) -> dict[str, str]:
+    """The ``btlog.run`` record: every value a string (JSON text for ``JSON_METADATA``
+    keys given as objects), with the schema version, btlog's version, a run id and the
+    start time filled in."""
+    record = {"run_id": uuid.uuid4().hex,
+              "started_at": datetime.now(UTC).isoformat(timespec="microseconds"),
+              "btlog_version": btlog.__version__}
+    for key, value in metadata.items():
+        record[str(key)] = _metadata_text(str(key), value)
+    record["schema_version"] = btlog.SCHEMA_VERSION
+    return record
+
+
+def _metadata_text(key: str, value: Any) -> str:
+    if key in fmt.JSON_METADATA and not isinstance(value, str):
+        return orjson.dumps(value, default=repr).decode()
+    if value is None:
+        return ""
+    return value if isinstance(value, str) else str(value)
+
+
+class Recorder(Subscriber):
+    """Records a run into the MCAP file ``path`` (see the module docstring).
+
+    The file is created, and its head (header, schemas, channels, the ``btlog.run``
+    metadata, the ``attachments`` — ``(name, bytes)`` of the tree's XML files — and the
+    ``/btlog/tree`` message) written and flushed, at construction. Subscribe it to an
+    executor; ``close()`` (or the executor's ``close()``, or leaving a ``with`` block)
+    finishes the file. ``event_count`` and ``last_seq`` tell what has been written so far;
+    ``metadata`` is the ``btlog.run`` record as written.
+
+    A tick's status changes are buffered until the tick ends. ``max_tick_events`` (e.g.
+    ``MAX_BUFFERED_EVENTS``) bounds that buffer for trees that may loop many times within
+    one tick: past it the events are written, and flushed when the interval has passed.
+    It costs a length check per event (5–10 % of the recorder's time, measured), so it is
+    off by default; blackboard writes are always bounded by ``MAX_BUFFERED_EVENTS``.
+    """
+
+    def __init__(self, path: str | os.PathLike, tree: Tree, metadata: Mapping[str, Any],
+                 attachments: Iterable[tuple[str, bytes]] = (), flush_interval: float = 1.0,
+                 compression: CompressionType = DEFAULT_COMPRESSION,
+                 chunk_size: int = CHUNK_SIZE, max_tick_events: int | None = None) -> None:
+        self.path = os.fspath(path)
+        self.flush_interval = flush_interval
+        self.max_tick_events = max_tick_events
+        self.metadata = run_metadata(metadata)
+        self.event_count = 0
+        self.last_seq: int | None = None
+        self._closed = False
+        self._status_rows: list[tuple] = []
+        self._write_rows: list[tuple] = []
+        self._tick_rows: list[tuple] = []
+        self._file = open(self.path, "wb")  # noqa: SIM115 (closed by close())
+        try:
+            self._writer = Writer(self._file, chunk_size=chunk_size, compression=compression)
+            self._channels = self._start(tree, attachments)
+        except BaseException:
+            self._file.close()
+            raise
+        self._events_channel = self._channels[fmt.EVENTS_TOPIC]
+        self._last_flush = time.monotonic()
+        if type(self).on_status is Recorder.on_status:  # a subclass's override wins
+            self.on_status = self._status_appender()
+
+    def _start(self, tree: Tree, attachments: Iterable[tuple[str, bytes]]) -> dict[str, int]:
+        writer = self._writer
+        writer.start(profile="", library=f"btlog/{btlog.__version__}")
+        channels = {}
+        for topic, (schema_name, schema_file) in fmt.TOPICS.items():
+            schema_id = writer.register_schema(schema_name, SchemaEncoding.JSONSchema,
+                                               schema_text(schema_file))
+            channels[topic] = writer.register_channel(topic, MessageEncoding.JSON, schema_id)
+        writer.add_metadata(fmt.METADATA_NAME, self.metadata)
+        now = time.time_ns()
+        for name, data in attachments:
+            writer.add_attachment(now, now, name, XML_MEDIA_TYPE, bytes(data))
+        writer.add_message(channels[fmt.TREE_TOPIC], now, fmt.dumps(tree.describe()), now)
+        writer.flush()
+        return channels
+
+    # -- the hot path -----------------------------------------------------------------
+    def on_status(self, seq: int, t_ns: int, tick: int, uid: int, prev: Status,
+                  status: Status) -> None:
+        """Buffer a status change (replaced per instance by ``_status_appender``)."""
+        rows = self._status_rows
+        rows.append((seq, t_ns, tick, uid, STATUS_NAMES[prev], STATUS_NAMES[status]))
+        if self.max_tick_events is not None and len(rows) > self.max_tick_events:
+            self._overflow()
+
+    def _status_appender(self):
+        """``on_status`` as a closure over the row list: no attribute look-up per event,
+        which is most of what a method would cost beyond the append itself."""
+        rows = self._status_rows
+        append, names, limit = rows.append, STATUS_NAMES, self.max_tick_events
+        overflow = self._overflow
+
+        def on_status(seq: int, t_ns: int, tick: int, uid: int, prev: Status,
+                      status: Status) -> None:
+            append((seq, t_ns, tick, uid, names[prev], names[status]))
+
+        def on_status_bounded(seq: int, t_ns: int, tick: int, uid: int, prev: Status,
+                              status: Status) -> None:
+            append((seq, t_ns, tick, uid, names[prev], names[status]))
+            if len(rows) > limit:
+                overflow()
+
+        appender = on_status if limit is None else on_status_bounded
+        appender.__doc__ = Recorder.on_status.__doc__
+        return appender
+
+    def on_write(self, seq: int, t_ns: int, tick: int, scope: str, key: str, value: Any,
+                 type_name: str, writer_uid: int | None) -> None:
+        """Buffer a blackboard write (a value orjson cannot encode becomes its repr)."""
+        rows = self._write_rows
+        rows.append((seq, t_ns, tick, scope, key, json_value(value), type_name, writer_uid))
+        if len(rows) > MAX_BUFFERED_EVENTS:
+            self._overflow()
+
+    def _overflow(self) -> None:
+        """A long tick: write its events so far, and flush if the interval has passed."""
+        if self._closed:  # events after close are dropped, not kept
+            self._status_rows.clear()
+            self._write_rows.clear()
+            return
+        self._write_events()
+        if time.monotonic() - self._last_flush >= self.flush_interval:
+            self.flush()
+
+    def on_tick(self, record: TickRecord) -> None:
+        """Write the tick's events as one message; flush when the interval has passed."""
+        if self._closed:
+            return
+        tick, start_ns, end_ns, root_status = record
+        if self._status_rows or self._write_rows:
+            self._write_events(tick)
+        self._tick_rows.append((tick, start_ns, end_ns, STATUS_NAMES[root_status]))
+        if time.monotonic() - self._last_flush >= self.flush_interval:
+            self.flush()
+
+    # -- the rest ---------------------------------------------------------------------
+    def on_mutation(self, mutation: TreeMutation) -> None:
+        """Write the pending events, then the mutation (which has the next seq)."""
+        if self._closed:
+            return
+        self._write_events()
+        self._add(fmt.MUTATIONS_TOPIC, fmt.encode_mutation(mutation))
+        self.event_count += 1
+        self.last_seq = mutation.seq
+
+    def on_answer(self, seq: int, t_ns: int, tick: int, question: str, intent: str,
+                  answer: str) -> None:
+        """Record a question asked live and its answer (after the events it is about)."""
+        if self._closed:
+            return
+        self._write_events()
+        self._add(fmt.ANSWERS_TOPIC, {"seq": seq, "t_ns": t_ns, "tick": tick,
+                                      "question": question, "intent": intent,
+                                      "answer": answer})
+
+    def flush(self) -> None:
+        """Write everything buffered and flush it to the file (closes the MCAP chunk)."""
+        if self._closed:
+            return
+        self._write_events()
+        self._write_ticks()
+        self._writer.flush()
+        self._last_flush = time.monotonic()
+
+    def on_close(self) -> None:
+        """Write what is pending and finish the file (summary and footer)."""
+        self.close()
+
+    def close(self) -> None:
+        """Finish the file; calling it again does nothing."""
+        if self._closed:
+            return
+        try:
+            self._write_events()
+            self._write_ticks()
+            self._writer.finish()
+        finally:
+            self._closed = True
+            self._file.close()
+
+    @property
+    def closed(self) -> bool:
+        """True once the file is finished."""
+        return self._closed
+
+    def __enter__(self) -> Recorder:
+        return self
+
+    def __exit__(self, *exc_info: object) -> None:
+        self.close()
+
+    # -- writing ----------------------------------------------------------------------
+    def _write_events(self, tick: int | None = None) -> None:
+        """One ``/btlog/events`` message with the buffered rows (``tick`` defaults to the
+        last row's)."""
+        status, writes = self._status_rows, self._write_rows
+        if not status and not writes:
+            return
+        last = status[-1] if status else writes[-1]
+        if status and writes and writes[-1][0] > last[0]:
+            last = writes[-1]
+        data = orjson.dumps({"tick": last[2] if tick is None else tick,
+                             "status": status, "writes": writes})
+        now = time.time_ns()
+        self._writer.add_message(self._events_channel, now, data, now)
+        self.event_count += len(status) + len(writes)
+        self.last_seq = last[0]
+        status.clear()
+        writes.clear()
+
+    def _write_ticks(self) -> None:
+        if self._tick_rows:
+            self._add(fmt.TICKS_TOPIC, {"ticks": self._tick_rows})
+            self._tick_rows = []
+
+    def _add(self, topic: str, message: dict) -> None:
+        now = time.time_ns()
+        self._writer.add_message(self._channels[topic], now, fmt.dumps(message), now)
