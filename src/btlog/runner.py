@@ -150,7 +150,7 @@ class RunConfig:
             value = metadata.get(key, default)
             return json.loads(value) if isinstance(value, str) else value
 
-        return cls(tree=tree or metadata.get("tree_file_abs") or metadata["tree_file"],
+        return cls(tree=tree or _recorded_tree(metadata),
                    domain=metadata.get("domain", "scripted"),
                    outcomes=loaded("outcomes", {}),
                    fail=list(loaded("fail", [])),
@@ -160,6 +160,14 @@ class RunConfig:
                    max_ticks=int(metadata.get("max_ticks", DEFAULT_MAX_TICKS)),
                    questions=list(loaded("questions", [])),
                    realtime=metadata.get("clock") == "wall")
+
+
+def _recorded_tree(metadata: dict) -> str:
+    """The recorded tree file: as given (relative to here) if it exists, else absolute."""
+    given = metadata.get("tree_file", "")
+    if given and Path(given).exists():
+        return given
+    return metadata.get("tree_file_abs") or given
 
 
 @dataclass
