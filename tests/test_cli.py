@@ -1,0 +1,171 @@
+"""The real command line, in subprocesses, on real files: outputs and exit codes."""
+
+from __future__ import annotations
+
+import os
+import signal
+import subprocess
+import sys
+import time
+from pathlib import Path
+
+import pytest
+
+from btlog.record.reader import open_recording
+
+ROOT = Path(__file__).resolve().parent.parent
+KITTING = ROOT / "trees" / "kitting.xml"
+RECORDINGS = ROOT / "recordings"
+
+
+def btlog(*args: str, cwd: Path = ROOT, timeout: float = 120) -> subprocess.CompletedProcess:
+    """Run ``btlog ARGS`` and capture its output."""
+    env = {**os.environ, "PYTHONPATH": str(ROOT / "src"), "NO_COLOR": "1"}
+    env.pop("BTLOG_DEBUG", None)
+    return subprocess.run([sys.executable, "-m", "btlog.cli.main", *args], cwd=cwd, env=env,
+                          capture_output=True, text=True, timeout=timeout, check=False)
+
+
+def assert_bad_input(result: subprocess.CompletedProcess, *words: str) -> None:
+    """Exit 2, one line on stderr mentioning ``words``, no traceback."""
+    assert result.returncode == 2, result.stderr
+    lines = result.stderr.strip().splitlines()
+    assert len(lines) == 1, result.stderr
+    assert "Traceback" not in result.stderr
+    for word in words:
+        assert word in lines[0]
+
+
+def test_run_records_and_answers_live(tmp_path: Path) -> None:
+    out = tmp_path / "k.mcap"
+    result = btlog("run", str(KITTING), "--domain", "kitting", "--fail", "look at chuck",
+                   "--ask", "30s=What went wrong?", "-o", str(out))
+    assert result.returncode == 0, result.stderr
+    assert "I am retrying for attempt 1 to go insert large gear." in result.stdout
+    assert "final status: SUCCESS" in result.stdout
+    recording = open_recording(out)
+    assert [e.seq for e in recording.events] == list(range(len(recording.events)))
+    assert recording.answers[0]["question"] == "What went wrong?"
+    assert recording.metadata["domain"] == "kitting"
+    assert recording.metadata["fail"] == ["look at chuck"]
+
+
+def test_seeded_runs_are_identical(tmp_path: Path) -> None:
+    events = []
+    for name in ("a", "b"):
+        out = tmp_path / f"{name}.mcap"
+        result = btlog("run", str(KITTING), "--domain", "kitting", "--failure-rate", "0.2",
+                       "--seed", "7", "--max-ticks", "3000", "-o", str(out))
+        assert result.returncode == 0, result.stderr
+        events.append(open_recording(out).events)
+    assert events[0] == events[1]
+    assert len(events[0]) > 50
+
+
+def test_validate(tmp_path: Path) -> None:
+    result = btlog("validate", str(KITTING))
+    assert result.returncode == 0
+    assert "OK (BehaviorTree.CPP v4 format)" in result.stdout
+    assert "subgoals: go insert large gear; go pick screw; go place screw" in result.stdout
+    paper = ROOT.parent / "shared" / "reference" / "uml-robotics" / "kitting-tree.xml"
+    assert "v3 format" in btlog("validate", str(paper)).stdout
+
+
+@pytest.mark.parametrize(("xml", "words"), [
+    ("<root><BehaviorTree ID='M'><Sequence>", ["malformed XML", ":1"]),
+    ("<root BTCPP_format='4'><BehaviorTree ID='M'><Mystery><AlwaysSuccess/></Mystery>"
+     "</BehaviorTree></root>", ["unknown node type 'Mystery' with children"]),
+    ("<root BTCPP_format='4'><BehaviorTree ID='M'><Inverter><AlwaysSuccess/><AlwaysSuccess/>"
+     "</Inverter></BehaviorTree></root>", ["Inverter must have 1 children, found 2"]),
+    ("<root BTCPP_format='4'><BehaviorTree ID='M'><SubTree ID='Nope'/></BehaviorTree></root>",
+     ["subtree 'Nope' is not defined"]),
+    ("<root BTCPP_format='4' main_tree_to_execute='A'><BehaviorTree ID='A'><SubTree ID='B'/>"
+     "</BehaviorTree><BehaviorTree ID='B'><SubTree ID='A'/></BehaviorTree></root>",
+     ["subtree cycle: A -> B -> A"]),
+    ("<root BTCPP_format='4' main_tree_to_execute='X'><BehaviorTree ID='A'><AlwaysSuccess/>"
+     "</BehaviorTree></root>", ["main tree 'X' is not defined"]),
+    ("<root BTCPP_format='4'><BehaviorTree ID='M'><RetryUntilSuccessful num_attempts='many'>"
+     "<AlwaysSuccess/></RetryUntilSuccessful></BehaviorTree></root>", ["bad value 'many'"]),
+    ('<?xml version="1.0"?><!DOCTYPE r [<!ENTITY a "aaaaaaaaaa"><!ENTITY b "&a;&a;&a;&a;">]>'
+     "<root><BehaviorTree ID='M'><AlwaysSuccess name='&b;'/></BehaviorTree></root>",
+     ["DOCTYPE"]),
+])
+def test_bad_trees(tmp_path: Path, xml: str, words: list[str]) -> None:
+    tree = tmp_path / "bad.xml"
+    tree.write_text(xml)
+    assert_bad_input(btlog("validate", str(tree)), str(tree), *words)
+    assert_bad_input(btlog("run", str(tree), "-o", str(tmp_path / "x.mcap")), str(tree))
+
+
+@pytest.mark.parametrize(("content", "words"), [
+    ("nodes: [1, 2]", ["nodes must be a mapping"]),
+    ("nodes:\n  'look at chuck': MAYBE", ["status must be SUCCESS or FAILURE"]),
+    ("nodes:\n  'no such node': FAILURE", ["matches no node"]),
+    ("default: {duration: -1}", ["duration must be"]),
+    ("nodes: {a: [", ["not valid YAML/JSON"]),
+])
+def test_bad_outcomes(tmp_path: Path, content: str, words: list[str]) -> None:
+    outcomes = tmp_path / "outcomes.yaml"
+    outcomes.write_text(content)
+    result = btlog("run", str(KITTING), "--outcomes", str(outcomes), "-o",
+                   str(tmp_path / "x.mcap"))
+    assert_bad_input(result, *words)
+
+
+def test_bad_run_options(tmp_path: Path) -> None:
+    out = str(tmp_path / "x.mcap")
+    assert_bad_input(btlog("run", str(KITTING), "--domain", "mars", "-o", out), "mars")
+    assert_bad_input(btlog("run", str(KITTING), "--ask", "soon=What?", "-o", out), "soon")
+    assert_bad_input(btlog("run", str(KITTING), "--ask", "1s=Sing a song", "-o", out),
+                     "I don't understand")
+    assert_bad_input(btlog("run", str(KITTING), "--failure-rate", "2", "-o", out),
+                     "failure-rate")
+
+
+@pytest.mark.parametrize("content", [b"", b"hello, I am not a recording\n", b"\x89MCAP0\r\n"])
+def test_bad_recordings(tmp_path: Path, content: bytes) -> None:
+    broken = tmp_path / "broken.mcap"
+    broken.write_bytes(content)
+    assert_bad_input(btlog("recover", str(broken), "-o", str(tmp_path / "fixed.mcap")),
+                     str(broken))
+
+
+def test_missing_files_are_bad_input(tmp_path: Path) -> None:
+    assert_bad_input(btlog("validate", str(tmp_path / "none.xml")), "cannot read")
+    assert_bad_input(btlog("recover", str(tmp_path / "none.mcap"), "-o",
+                           str(tmp_path / "f.mcap")))
+
+
+def test_kill_9_then_recover(tmp_path: Path) -> None:
+    """A real ``btlog run`` killed with SIGKILL keeps a readable prefix; recover fixes it."""
+    out = tmp_path / "killed.mcap"
+    env = {**os.environ, "PYTHONPATH": str(ROOT / "src")}
+    process = subprocess.Popen(
+        [sys.executable, "-m", "btlog.cli.main", "run", str(KITTING), "--domain", "kitting",
+         "--realtime", "--tick-period", "0.005", "--flush-interval", "0.05", "--quiet",
+         "-o", str(out)], cwd=ROOT, env=env, stdout=subprocess.DEVNULL,
+        stderr=subprocess.DEVNULL)
+    deadline = time.monotonic() + 30
+    while time.monotonic() < deadline and (not out.exists() or out.stat().st_size < 4000):
+        time.sleep(0.05)
+    time.sleep(0.5)
+    process.send_signal(signal.SIGKILL)
+    process.wait(timeout=10)
+    broken = open_recording(out)
+    assert broken.truncated
+    assert len(broken.events) > 0
+    assert [e.seq for e in broken.events] == list(range(len(broken.events)))
+    fixed = tmp_path / "fixed.mcap"
+    result = btlog("recover", str(out), "-o", str(fixed))
+    assert result.returncode == 0, result.stderr
+    recovered = open_recording(fixed)
+    assert not recovered.truncated
+    assert recovered.events == broken.events
+
+
+def test_help_for_every_command() -> None:
+    for command in ("run", "ask", "explain", "show", "timeline", "replay", "sql", "diff",
+                    "check", "recover", "validate"):
+        result = btlog(command, "--help")
+        assert result.returncode == 0
+        assert f"usage: btlog {command}" in result.stdout
