@@ -37,12 +37,15 @@ import cProfile
 import gc
 import io
 import pstats
+import tempfile
 import time
 from collections.abc import Callable
+from pathlib import Path
 from typing import Any
 
 from btlog.executor.clock import SimClock
 from btlog.executor.engine import Executor
+from btlog.record.recorder import Recorder
 from btlog.status import SUCCESS
 from btlog.tree.loader import load_tree_text
 
@@ -175,6 +178,13 @@ def main(argv: list[str] | None = None) -> int:
           f"1 AlwaysSuccess) = {nodes} nodes; {seconds:g} s per measurement")
     rates: dict[str, float] = {}
     rates["btlog"] = time_ticks(executor.tick, seconds)
+    with tempfile.TemporaryDirectory() as folder:
+        recorded = make_btlog_tree()
+        recorder = Recorder(Path(folder) / "bench.mcap", recorded.tree, {"domain": "bench"})
+        recorded.subscribe(recorder)
+        rates["btlog + full recording"] = time_ticks(recorded.tick, seconds)
+        recorder.close()
+        events_per_tick = recorded.seq / max(recorded.runtime.tick, 1)
     rates["py_trees"] = time_ticks(py_tree.root.tick_once, seconds)
     rates["py_trees BehaviourTree.tick()"] = time_ticks(py_tree.tick, seconds)
     if btcpp is not None:
@@ -189,6 +199,10 @@ def main(argv: list[str] | None = None) -> int:
           f"{'met' if ratio >= TARGET_RATIO else 'NOT met'})")
     print(f"btlog / py_trees BehaviourTree.tick(): "
           f"{rates['btlog'] / rates['py_trees BehaviourTree.tick()']:.2f}x")
+    recording_ratio = rates["btlog + full recording"] / rates["py_trees"]
+    print(f"btlog with full recording / py_trees: {recording_ratio:.2f}x  (target >= 3x: "
+          f"{'met' if recording_ratio >= 3 else 'NOT met'}; {events_per_tick:.0f} events/tick, "
+          f"{rates['btlog + full recording'] * events_per_tick:,.0f} events/s recorded)")
     if btcpp is not None:
         print(f"btlog / BT.CPP: {rates['btlog'] / rates['BT.CPP (behaviortreepy)']:.3f}x")
     else:
