@@ -58,7 +58,7 @@ def test_btlog_matches_btcpp_transition_for_transition(oracle_results) -> None:
         ours = btlog_transitions(case)
         theirs = result["transitions"]
         if ours != theirs:
-            first = next((i for i, (a, b) in enumerate(zip(ours, theirs)) if a != b),
+            first = next((i for i, (a, b) in enumerate(zip(ours, theirs, strict=False)) if a != b),
                          min(len(ours), len(theirs)))
             mismatches.append((case.seed if hasattr(case, "seed") else "?", first,
                                theirs[first:first + 3], ours[first:first + 3]))

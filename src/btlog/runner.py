@@ -29,7 +29,7 @@ from btlog.executor.engine import Executor
 from btlog.explain.questions import Answer, answer, parse_question
 from btlog.record.recorder import Recorder
 from btlog.replay.state import StateProjection
-from btlog.status import FAILURE, SUCCESS, Status
+from btlog.status import Status
 from btlog.tree.loader import load_tree
 from btlog.tree.model import Tree
 
@@ -273,6 +273,5 @@ def execute(config: RunConfig, output: str | os.PathLike | None = None,
             live.finish()
     finally:
         executor.close()
-    final = status if status in (SUCCESS, FAILURE) else status
-    return RunResult(path, run_id, final, executor.runtime.tick, executor.seq,
+    return RunResult(path, run_id, status, executor.runtime.tick, executor.seq,
                      live.answered if live is not None else [])

@@ -13,7 +13,8 @@ from rich.progress import BarColumn, Progress, TextColumn, TimeElapsedColumn
 
 from btlog.explain.hierarchy import current_nodes
 from btlog.explain.insertion import apply_to_copy
-from btlog.explain.questions import Answer, answer, explain as explain_all
+from btlog.explain.questions import Answer, answer
+from btlog.explain.questions import explain as explain_all
 from btlog.render.terminal import (
     blackboard_lines,
     format_ns,

@@ -151,7 +151,7 @@ def main(argv: Sequence[str] | None = None) -> int:
         return 130
     except BrokenPipeError:
         return EXIT_OK
-    except Exception as error:  # noqa: BLE001 - the contract: one line, never a traceback
+    except Exception as error:
         if os.environ.get("BTLOG_DEBUG"):
             traceback.print_exc()
         print(f"btlog {args.command}: {_one_line(error)}", file=sys.stderr)

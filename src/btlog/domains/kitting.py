@@ -37,11 +37,11 @@ class KittingDomain(Domain):
 
     name = "kitting"
 
-    def duration(self, node: Node) -> Outcome | None:  # noqa: D102
+    def duration(self, node: Node) -> Outcome | None:
         seconds = DURATIONS.get(node.type, 0.5)
         return Outcome(SUCCESS, round(seconds * 1e9))
 
-    def effect(self, node: Node) -> Effect | None:  # noqa: D102
+    def effect(self, node: Node) -> Effect | None:
         if node.type in OBJECTS:
             return self._detect
         if node.type in ("convert to insertion pose", "convert to grasp pose"):

@@ -30,10 +30,10 @@ class TaxiDomain(Domain):
         self.state = self.world.start_state()
         self.reward = 0.0
 
-    def duration(self, node: Node) -> Outcome | None:  # noqa: D102
+    def duration(self, node: Node) -> Outcome | None:
         return Outcome(SUCCESS, round(ACTION_SECONDS * 1e9)) if node.type in ACTIONS else None
 
-    def effect(self, node: Node) -> Effect | None:  # noqa: D102
+    def effect(self, node: Node) -> Effect | None:
         return self._act if node.type in ACTIONS else None
 
     def _act(self, leaf: ScriptedLeaf, status: Status) -> Status:

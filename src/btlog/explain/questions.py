@@ -46,8 +46,8 @@ _PATTERNS: list[tuple[str, re.Pattern]] = [(intent, re.compile(p)) for intent, p
                     rf"do) (?:your |the |this )?(?:sub ?goal|sub-goal|it)$"),
     ("how_goal", rf"^how (?:do|will|can|are) {_YOU} (?:going to )?(?:achieve|accomplish|reach|"
                  rf"do) (?:your |the )?(?:overall |main |final )?goal$"),
-    ("subgoal", rf"^what(?: is|'s|s) (?:your|the)(?: current)? (?:sub ?goal|sub-goal)$"),
-    ("goal", rf"^what(?: is|'s|s) (?:your|the)(?: overall| main| final)? goal$"),
+    ("subgoal", r"^what(?: is|'s|s) (?:your|the)(?: current)? (?:sub ?goal|sub-goal)$"),
+    ("goal", r"^what(?: is|'s|s) (?:your|the)(?: overall| main| final)? goal$"),
     ("wrong", r"^what went wrong$"),
     ("wrong", r"^(?:was|is) (?:there )?(?:anything|something) wrong$"),
     ("wrong", r"^how (?:was|is|were) (?:the )?failures? handled$"),

@@ -119,7 +119,8 @@ class Node:
             "name": self.name,
             "path": self.path,
             "scope": self.scope,
-            "ports": {k: {"value": p.value, "direction": p.direction} for k, p in self.ports.items()},
+            "ports": {k: {"value": p.value, "direction": p.direction}
+                      for k, p in self.ports.items()},
             "attributes": dict(self.attributes),
             "file": self.file,
             "line": self.line,
@@ -137,7 +138,8 @@ def node_from_description(record: dict) -> Node:
         name=record["name"],
         kind=record["kind"],
         ports={
-            k: Port(p["value"], p.get("direction", INPUT)) for k, p in record.get("ports", {}).items()
+            k: Port(p["value"], p.get("direction", INPUT))
+            for k, p in record.get("ports", {}).items()
         },
         attributes=dict(record.get("attributes", {})),
         path=record.get("path", ""),
