@@ -7,12 +7,14 @@ One MCAP file per run. Every message is a JSON object described by a JSON Schema
 with each node ``{"uid", "parent_uid", "idx", "kind", "type", "name", "path", "scope",
 "ports": {name: {"value", "direction"}}, "attributes", "file", "line"}``.
 
-``/btlog/events`` (``btlog.Events``), one message per tick that had events::
+``/btlog/events`` (``btlog.Events``), messages grouping the events of one or more ticks
+(a message is written once about a thousand events have gathered, and at every flush)::
 
     {"tick": 7,
      "status": [[seq, t_ns, tick, uid, prev, status], …],
      "writes": [[seq, t_ns, tick, scope, key, value, type, writer_uid], …]}
 
+``tick`` is the last tick the message covers; every row keeps its own seq, time and tick.
 Rows are arrays (compact and fast to encode); statuses are names (``"RUNNING"``). The
 two lists interleave by ``seq``, which is global and gap-free across all event kinds,
 mutations included. A ``value`` that is not JSON is its ``repr`` with ``type`` naming
