@@ -143,10 +143,10 @@ def timeline(args: Namespace) -> int:
                 status = Status[args.status.upper()]
             except KeyError:
                 raise ValueError(f"unknown status {args.status!r}") from None
-        rows = run.timeline(node=args.node, status=status, start=args.start, end=args.end,
-                            writes=args.writes)
+        entries = run.timeline(node=args.node, status=status, start=args.start, end=args.end)
     finally:
         database.close()
+    rows = [e._asdict() for e in entries if args.writes or e.kind != "write"]
     if args.json:
         for row in rows:
             print(json.dumps(row, default=repr))
@@ -161,11 +161,13 @@ def timeline(args: Namespace) -> int:
 
 def _timeline_line(row: dict) -> str:
     head = f"{row['seq']:>7}  {format_ns(row['t_ns']):>10}  tick {row['tick']:<6}"
-    if row.get("kind") == "write":
-        value = json.dumps(row.get("value"), default=repr)
-        return f"{head} {safe(row.get('scope') or '(root)')}.{safe(row['key'])} = {safe(value)}"
-    name = safe(row.get("name") or row.get("type") or "")
-    return f"{head} {name} #{row['uid']}  {row['prev_status']} -> {row['status']}"
+    if row["kind"] == "write":
+        value = json.dumps(row["value"], default=repr)
+        return f"{head} {safe(row['scope'] or '(root)')}.{safe(row['key'])} = {safe(value)}"
+    if row["kind"] == "mutation":
+        return f"{head} inserted {safe(row['node'] or '')} #{row['uid']}"
+    return (f"{head} {safe(row['node'] or '')} #{row['uid']}  "
+            f"{row['prev_status']} -> {row['status']}")
 
 
 # -- sql ---------------------------------------------------------------------------------
