@@ -1,0 +1,122 @@
+"""``btlog diff`` and ``btlog check``: divergence between behaviours, regression checks.
+
+``diff A B`` prints, subgoal by subgoal, the actions of two behaviours side by side (a
+behaviour is a recording, or a tree XML standing for its nominal sequence), with the
+edit distance and LCS length of each subgoal and the divergent actions marked with their
+immediate parents. It is a report: its exit code is 0 whatever it finds.
+
+``check RUN… --expect F`` and ``check RUN… --rerun [--tree T]`` are checks: exit 1 when
+any check of any run fails, 0 when all pass, 2 for bad input (one line on stderr).
+"""
+
+from __future__ import annotations
+
+import json
+from argparse import Namespace
+
+from rich.text import Text
+
+from btlog.explain.divergence import diff_paths, render_lines, to_json
+from btlog.render.terminal import make_console, safe
+from btlog.testing.expectations import (
+    CheckResult,
+    Expectations,
+    RerunReport,
+    check_run,
+    load_expectations,
+    rerun,
+)
+
+EXIT_OK, EXIT_CHECK_FAILED = 0, 1
+_STYLES = {"title": "bold", "header": "bold", "row": "", "divergent": "bold blue",
+           "blank": "", "summary": "bold"}
+
+
+def diff(args: Namespace) -> int:
+    """``btlog diff A B``: the divergence of two runs, or of a run and a tree."""
+    divergence = diff_paths(args.a, args.b)
+    if args.json:
+        print(json.dumps(to_json(divergence), indent=2))
+        return EXIT_OK
+    console = make_console(args.plain)
+    for text, kind in render_lines(divergence):
+        console.print(Text(text, style=_STYLES[kind]))
+    return EXIT_OK
+
+
+def _check_options(args: Namespace) -> Expectations | None:
+    """Validate the option combination and read the expectations before any run."""
+    if not args.expect and not args.rerun:
+        raise ValueError("check needs --expect FILE or --rerun")
+    if args.tree and not args.rerun:
+        raise ValueError("--tree TREE is only used with --rerun")
+    return load_expectations(args.expect) if args.expect else None
+
+
+def _check_one(path: str, expectations: Expectations | None,
+               args: Namespace) -> tuple[list[CheckResult], RerunReport | None]:
+    results = check_run(path, expectations) if expectations is not None else []
+    report = rerun(path, args.tree) if args.rerun else None
+    return results, report
+
+
+def _passed(results: list[CheckResult], report: RerunReport | None) -> bool:
+    return all(r.ok for r in results) and (report is None or report.ok)
+
+
+def _print_run(path: str, expectations: Expectations | None, results: list[CheckResult],
+               report: RerunReport | None) -> None:
+    verdict = "PASS" if _passed(results, report) else "FAIL"
+    print(f"{verdict}  {safe(path)}")
+    if expectations is not None:
+        failed = sum(not r.ok for r in results)
+        print(f"  expectations {safe(expectations.source)}: {len(results)} checks, "
+              f"{failed} failed")
+        for result in results:
+            print(_indent(safe_report(result), 4))
+    if report is not None:
+        print(_indent(safe_multiline(report.render()), 2))
+
+
+def safe_report(result: CheckResult) -> str:
+    """A check's report with control characters made visible, line by line."""
+    return safe_multiline(result.report())
+
+
+def safe_multiline(text: str) -> str:
+    """``safe`` applied to each line of ``text``."""
+    return "\n".join(safe(line) for line in text.splitlines())
+
+
+def _indent(text: str, spaces: int) -> str:
+    pad = " " * spaces
+    return "\n".join(pad + line if line else "" for line in text.splitlines())
+
+
+def check(args: Namespace) -> int:
+    """``btlog check RUN… [--expect F] [--rerun [--tree T]]``: exit 1 if any check fails."""
+    expectations = _check_options(args)
+    outcomes = [(path, *_check_one(path, expectations, args)) for path in args.runs]
+    failed = [path for path, results, report in outcomes if not _passed(results, report)]
+    if args.json:
+        print(json.dumps(_json(outcomes, expectations, not failed), indent=2))
+    else:
+        for path, results, report in outcomes:
+            _print_run(path, expectations, results, report)
+        count = len(outcomes)
+        print(f"{count} run{'s' if count != 1 else ''} checked: {count - len(failed)} passed, "
+              f"{len(failed)} failed")
+    return EXIT_CHECK_FAILED if failed else EXIT_OK
+
+
+def _json(outcomes, expectations: Expectations | None, ok: bool) -> dict:
+    runs = []
+    for path, results, report in outcomes:
+        entry: dict = {"run": path, "ok": _passed(results, report)}
+        if expectations is not None:
+            entry["expectations"] = {"file": expectations.source,
+                                     "checks": [r.to_json() for r in results]}
+        if report is not None:
+            entry["rerun"] = report.to_json()
+        runs.append(entry)
+    return {"ok": ok, "runs": runs}

@@ -1,0 +1,457 @@
+"""Divergence between two behaviours: where does what one run did differ from another?
+
+The idea (Han et al., section 7.2.1)
+------------------------------------
+People form a mental model of a robot after watching it a few times. When the robot's
+behaviour and that model differ — the Taxi detours around a toll while a person expects it
+to drive straight through — the useful explanation is *where* they differ. A behavior
+tree makes this cheap: its subgoals cut a long behaviour into short, comparable pieces.
+For each subgoal we take the sequence of actions executed under it in both behaviours
+and compare the two sequences with the O(NP) algorithm of Wu, Manber, Myers and Miller
+(``btlog.explain.sequence_diff``): the edit distance counts the actions that would have
+to be removed or added to turn one into the other, the longest common subsequence (LCS)
+is what both agree on, and everything outside the LCS is a divergent action. As in the
+paper's Fig. 14, each divergent action is shown with its immediate parent, so that the
+reader sees which step of the subgoal changed.
+
+What a behaviour is
+-------------------
+A behaviour is the list of *executed actions*: every activation of an execution node
+(action or condition), i.e. each transition of such a node out of IDLE, in event order.
+It can come from
+
+- a recording (``executed_actions``): the events are folded through a
+  ``StateProjection``, so that nodes inserted while running ("Can you …?") are known
+  with their parents and subgoals;
+- a tree alone (``nominal_actions``): the tree is run in memory with every leaf
+  succeeding at once, which gives its nominal sequence — what the tree does when nothing
+  goes wrong, e.g. a human's expected policy written as a tree.
+
+Actions are compared by their description ``d(n)`` (name, or type when nameless): the
+same step in two versions of a tree has the same description even when its uid moved.
+Subgoals are grouped by description too, in order of first appearance.
+"""
+
+from __future__ import annotations
+
+import os
+from collections.abc import Iterable, Sequence
+from dataclasses import dataclass, replace
+
+from btlog.events import EventLog, StatusChange
+from btlog.explain.hierarchy import subgoal_node
+from btlog.explain.sequence_diff import Comparison, compare
+from btlog.render.terminal import safe
+from btlog.replay.state import StateProjection
+from btlog.status import FAILURE, IDLE, SKIPPED, SUCCESS
+from btlog.tree.model import Node, Tree
+
+__all__ = [
+    "Divergence",
+    "ExecutedAction",
+    "Move",
+    "Row",
+    "SubgoalDivergence",
+    "actions_from_events",
+    "actions_of",
+    "compare_subgoal",
+    "diff_paths",
+    "diverge",
+    "executed_actions",
+    "is_recording",
+    "label",
+    "nominal_actions",
+    "render",
+    "render_lines",
+    "subgoal_header",
+    "to_json",
+]
+
+#: Tick limit of a nominal run (a tree that never completes is cut off here).
+NOMINAL_MAX_TICKS = 1000
+_MCAP_MAGIC = b"\x89MCAP"
+
+
+@dataclass(frozen=True)
+class ExecutedAction:
+    """One activation of an execution node.
+
+    ``description`` is d(n); ``parent`` is d(parent) (the immediate parent, shown beside a
+    divergent action); ``subgoal`` is d(nearest SubTree ancestor), or d(root) when the
+    node has none. ``result`` is how the activation ended (SUCCESS/FAILURE), or None
+    when it was halted or the behaviour stopped first.
+    """
+
+    seq: int
+    uid: int
+    description: str
+    type: str
+    kind: str
+    parent: str
+    parent_uid: int | None
+    subgoal: str
+    result: str | None = None
+
+    def to_json(self) -> dict:
+        """JSON-ready form."""
+        return {"seq": self.seq, "uid": self.uid, "action": self.description,
+                "type": self.type, "kind": self.kind, "parent": self.parent,
+                "parent_uid": self.parent_uid, "subgoal": self.subgoal, "result": self.result}
+
+
+def _action(seq: int, node: Node, tree: Tree) -> ExecutedAction:
+    """The executed action of ``node`` starting at event ``seq``."""
+    subgoal = subgoal_node(node) or tree.root
+    parent = node.parent
+    return ExecutedAction(seq=seq, uid=node.uid, description=node.description, type=node.type,
+                          kind=node.kind, parent=parent.description if parent else "",
+                          parent_uid=parent.uid if parent else None,
+                          subgoal=subgoal.description)
+
+
+def actions_from_events(tree: Tree, events: Iterable) -> list[ExecutedAction]:
+    """The executed actions of a run of ``tree`` (the tree at the start) given its events.
+
+    The events are folded through a ``StateProjection`` so that the tree's shape follows
+    recorded mutations; an activation is an execution node's transition out of IDLE.
+    """
+    projection = StateProjection(tree)
+    actions: list[ExecutedAction] = []
+    open_: dict[int, int] = {}
+    for event in events:
+        projection.apply(event)
+        if type(event) is not StatusChange:
+            continue
+        node = projection.tree.nodes.get(event.uid)
+        if node is None or not node.is_execution:
+            continue
+        if event.prev is IDLE and event.status not in (IDLE, SKIPPED):
+            open_[event.uid] = len(actions)
+            actions.append(_action(event.seq, node, projection.tree))
+        if event.status in (SUCCESS, FAILURE) and event.uid in open_:
+            index = open_.pop(event.uid)
+            actions[index] = replace(actions[index], result=event.status.name)
+        elif event.status is IDLE:
+            open_.pop(event.uid, None)
+    return actions
+
+
+def executed_actions(recording) -> list[ExecutedAction]:
+    """The executed actions of a recording (a ``Recording`` or the path of one)."""
+    if isinstance(recording, str | os.PathLike):
+        from btlog.record.reader import open_recording
+
+        recording = open_recording(recording)
+    return actions_from_events(recording.tree, recording.events)
+
+
+def nominal_actions(tree_path: str | os.PathLike) -> list[ExecutedAction]:
+    """The nominal sequence of a tree: its actions when every leaf succeeds at once.
+
+    The tree runs in memory (simulated clock, scripted leaves, no file) until the root
+    completes or ``NOMINAL_MAX_TICKS`` ticks have passed.
+    """
+    from btlog.domains.outcomes import Outcomes, scripted_leaf_factory
+    from btlog.executor.clock import SimClock
+    from btlog.executor.engine import Executor
+    from btlog.tree.loader import load_tree
+
+    tree = load_tree(os.fspath(tree_path))
+    outcomes = Outcomes.from_mapping({"default": {"status": "SUCCESS", "duration": 0}},
+                                     "nominal outcomes")
+    executor = Executor(tree, clock=SimClock(),
+                        leaf_factory=scripted_leaf_factory(tree, outcomes))
+    log = EventLog()
+    executor.subscribe(log)
+    try:
+        executor.run(NOMINAL_MAX_TICKS)
+    finally:
+        executor.close()
+    return actions_from_events(tree, log.events)
+
+
+def is_recording(path: str | os.PathLike) -> bool:
+    """True when ``path`` starts like an MCAP file (otherwise it is taken as a tree)."""
+    try:
+        with open(path, "rb") as file:
+            return file.read(len(_MCAP_MAGIC)) == _MCAP_MAGIC
+    except OSError:
+        return True  # let the recording reader report the missing/unreadable file
+
+
+def actions_of(path: str | os.PathLike) -> list[ExecutedAction]:
+    """The behaviour stored at ``path``: a recording's executed actions, or a tree XML's
+    nominal sequence."""
+    return executed_actions(path) if is_recording(path) else nominal_actions(path)
+
+
+# -- the comparison ------------------------------------------------------------------------
+@dataclass(frozen=True)
+class Row:
+    """One row of a side-by-side alignment: ``op`` is "equal" (both sides), "only_a" or
+    "only_b" (a divergent action, present on one side only)."""
+
+    op: str
+    a: ExecutedAction | None
+    b: ExecutedAction | None
+    a_index: int | None = None
+    b_index: int | None = None
+
+    @property
+    def divergent(self) -> bool:
+        """True when the action is on one side only."""
+        return self.op != "equal"
+
+    def to_json(self) -> dict:
+        """JSON-ready form."""
+        return {"op": self.op, "a": self.a.to_json() if self.a else None,
+                "b": self.b.to_json() if self.b else None}
+
+
+@dataclass(frozen=True)
+class Move:
+    """An action that B does at another place than A: ``direction`` "later" or "earlier",
+    ``past`` the common actions it moved past."""
+
+    action: str
+    direction: str
+    past: tuple[str, ...]
+
+    def text(self) -> str:
+        """E.g. ``"scan scene" moved later, past "attach gear"``."""
+        text = f'"{safe(self.action)}" moved {self.direction}'
+        if self.past:
+            text += ", past " + ", ".join(f'"{safe(p)}"' for p in self.past)
+        return text
+
+    def to_json(self) -> dict:
+        """JSON-ready form."""
+        return {"action": self.action, "direction": self.direction, "past": list(self.past)}
+
+
+@dataclass(frozen=True)
+class SubgoalDivergence:
+    """The comparison of one subgoal's actions in behaviours A and B."""
+
+    subgoal: str
+    a_actions: tuple[ExecutedAction, ...]
+    b_actions: tuple[ExecutedAction, ...]
+    comparison: Comparison
+    rows: tuple[Row, ...]
+
+    @property
+    def edit_distance(self) -> int:
+        """Insertions plus deletions turning A's action descriptions into B's."""
+        return self.comparison.edit_distance
+
+    @property
+    def lcs(self) -> tuple[str, ...]:
+        """A longest common subsequence of the action descriptions."""
+        return tuple(self.comparison.lcs)
+
+    @property
+    def diverges(self) -> bool:
+        """True when the two sequences differ."""
+        return self.edit_distance > 0
+
+    @property
+    def only_a(self) -> list[ExecutedAction]:
+        """Divergent actions of A (not in the LCS), in order."""
+        return [row.a for row in self.rows if row.op == "only_a"]
+
+    @property
+    def only_b(self) -> list[ExecutedAction]:
+        """Divergent actions of B (not in the LCS), in order."""
+        return [row.b for row in self.rows if row.op == "only_b"]
+
+    @property
+    def moves(self) -> list[Move]:
+        """Actions divergent on both sides: the same action at another place in B.
+
+        The n-th divergent occurrence in A of a description is paired with its n-th
+        divergent occurrence in B; the actions both agree on between the two places are
+        what it moved past (for two swapped actions: the other one).
+        """
+        pending: dict[str, list[int]] = {}
+        for position, row in enumerate(self.rows):
+            if row.op == "only_a":
+                pending.setdefault(row.a.description, []).append(position)
+        moves = []
+        for position, row in enumerate(self.rows):
+            starts = pending.get(row.b.description) if row.op == "only_b" else None
+            if starts:
+                start = starts.pop(0)
+                low, high = sorted((start, position))
+                past = tuple(r.a.description for r in self.rows[low + 1:high] if r.op == "equal")
+                moves.append(Move(row.b.description, "later" if start < position else "earlier",
+                                  past))
+        return moves
+
+    @property
+    def moved(self) -> list[str]:
+        """Descriptions of the moved actions (see ``moves``)."""
+        return list(dict.fromkeys(move.action for move in self.moves))
+
+    def to_json(self) -> dict:
+        """JSON-ready form."""
+        listed = [_divergent_json(row) for row in self.rows if row.op == "only_a"]
+        listed += [_divergent_json(row) for row in self.rows if row.op == "only_b"]
+        return {"subgoal": self.subgoal, "edit_distance": self.edit_distance,
+                "lcs": list(self.lcs), "lcs_length": len(self.lcs),
+                "a_count": len(self.a_actions), "b_count": len(self.b_actions),
+                "divergent": listed, "moved": [m.to_json() for m in self.moves],
+                "rows": [row.to_json() for row in self.rows]}
+
+
+def _divergent_json(row: Row) -> dict:
+    side, action, index = ("a", row.a, row.a_index) if row.a else ("b", row.b, row.b_index)
+    return {"side": side, "index": index, "action": action.description,
+            "parent": action.parent, "seq": action.seq, "uid": action.uid}
+
+
+@dataclass(frozen=True)
+class Divergence:
+    """Behaviours A and B compared subgoal by subgoal (in order of first appearance)."""
+
+    a_label: str
+    b_label: str
+    subgoals: tuple[SubgoalDivergence, ...]
+
+    @property
+    def edit_distance(self) -> int:
+        """The sum of the subgoals' edit distances."""
+        return sum(s.edit_distance for s in self.subgoals)
+
+    @property
+    def identical(self) -> bool:
+        """True when no subgoal diverges."""
+        return self.edit_distance == 0
+
+    @property
+    def divergent_subgoals(self) -> list[SubgoalDivergence]:
+        """The subgoals whose action sequences differ."""
+        return [s for s in self.subgoals if s.diverges]
+
+    def subgoal(self, description: str) -> SubgoalDivergence:
+        """The comparison of one subgoal (KeyError if neither behaviour has it)."""
+        for found in self.subgoals:
+            if found.subgoal == description:
+                return found
+        raise KeyError(description)
+
+
+def _group(actions: Sequence[ExecutedAction]) -> dict[str, list[ExecutedAction]]:
+    groups: dict[str, list[ExecutedAction]] = {}
+    for action in actions:
+        groups.setdefault(action.subgoal, []).append(action)
+    return groups
+
+
+def _rows(comparison: Comparison, a: Sequence[ExecutedAction],
+          b: Sequence[ExecutedAction]) -> tuple[Row, ...]:
+    rows = []
+    for pair in comparison.alignment:
+        left = a[pair.a_index] if pair.a_index is not None else None
+        right = b[pair.b_index] if pair.b_index is not None else None
+        op = {"equal": "equal", "delete": "only_a", "insert": "only_b"}[pair.op]
+        rows.append(Row(op, left, right, pair.a_index, pair.b_index))
+    return tuple(rows)
+
+
+def compare_subgoal(subgoal: str, a: Sequence[ExecutedAction],
+                    b: Sequence[ExecutedAction]) -> SubgoalDivergence:
+    """Compare one subgoal's actions of A and B by description (O(NP))."""
+    comparison = compare([x.description for x in a], [x.description for x in b])
+    return SubgoalDivergence(subgoal, tuple(a), tuple(b), comparison, _rows(comparison, a, b))
+
+
+def diverge(a_actions: Sequence[ExecutedAction], b_actions: Sequence[ExecutedAction],
+            a_label: str = "A", b_label: str = "B") -> Divergence:
+    """Compare two behaviours subgoal by subgoal.
+
+    Subgoals come in order of first appearance in A, then those only B has. A subgoal
+    only one behaviour reached is compared with an empty sequence.
+    """
+    groups_a, groups_b = _group(a_actions), _group(b_actions)
+    names = list(dict.fromkeys([*groups_a, *groups_b]))
+    subgoals = tuple(compare_subgoal(name, groups_a.get(name, []), groups_b.get(name, []))
+                     for name in names)
+    return Divergence(a_label, b_label, subgoals)
+
+
+# -- output --------------------------------------------------------------------------------
+def to_json(divergence: Divergence) -> dict:
+    """The divergence as a JSON-ready dict (``btlog diff --json``)."""
+    return {"a": divergence.a_label, "b": divergence.b_label,
+            "edit_distance": divergence.edit_distance, "identical": divergence.identical,
+            "subgoals": [s.to_json() for s in divergence.subgoals]}
+
+
+def _cell(action: ExecutedAction | None, divergent: bool) -> str:
+    if action is None:
+        return ""
+    text = safe(action.description)
+    if divergent and action.parent:
+        text += f"  (in {safe(action.parent)})"
+    return text
+
+
+def subgoal_header(found: SubgoalDivergence) -> str:
+    """One line: the subgoal with its edit distance and LCS length."""
+    line = (f'subgoal "{safe(found.subgoal)}": edit distance {found.edit_distance}, '
+            f"LCS length {len(found.lcs)} ({len(found.a_actions)} vs "
+            f"{len(found.b_actions)} actions)")
+    if found.moves:
+        line += "; " + "; ".join(move.text() for move in found.moves)
+    return line
+
+
+def render_lines(divergence: Divergence,
+                 only_divergent: bool = False) -> list[tuple[str, str]]:
+    """The side-by-side report as ``(text, kind)`` lines; kind is "title", "header",
+    "row", "divergent", "blank" or "summary" (for styling). Divergent rows start with
+    ``!``; the missing side is blank. ``only_divergent`` leaves out the rows of subgoals
+    that agree."""
+    cells = [(_cell(r.a, r.divergent), r) for s in divergence.subgoals for r in s.rows]
+    width = max([len(c) for c, _ in cells] + [len(safe(divergence.a_label)) + 3, 20])
+    lines = [(f"A: {safe(divergence.a_label)}", "title"),
+             (f"B: {safe(divergence.b_label)}", "title")]
+    for found in divergence.subgoals:
+        lines.append(("", "blank"))
+        lines.append((subgoal_header(found), "header"))
+        if only_divergent and not found.diverges:
+            continue
+        lines.append((f"    {'A':<{width}}   B", "header"))
+        for row in found.rows:
+            mark = "! " if row.divergent else "  "
+            left, right = _cell(row.a, row.divergent), _cell(row.b, row.divergent)
+            text = f"  {mark}{left:<{width}}   {right}".rstrip()
+            lines.append((text, "divergent" if row.divergent else "row"))
+    lines.append(("", "blank"))
+    lines.append((_summary(divergence), "summary"))
+    return lines
+
+
+def _summary(divergence: Divergence) -> str:
+    count = len(divergence.subgoals)
+    if divergence.identical:
+        return f"no divergence in {count} subgoal{'s' if count != 1 else ''}"
+    diverging = len(divergence.divergent_subgoals)
+    return (f"total edit distance {divergence.edit_distance}: {diverging} of {count} "
+            f"subgoal{'s' if count != 1 else ''} diverge")
+
+
+def render(divergence: Divergence, only_divergent: bool = False) -> str:
+    """The side-by-side report as plain text (see ``render_lines``)."""
+    return "\n".join(text for text, _ in render_lines(divergence, only_divergent))
+
+
+def label(path: str | os.PathLike) -> str:
+    """How a behaviour's source is named in reports."""
+    name = os.fspath(path)
+    return name if is_recording(path) else f"{name} (nominal sequence of the tree)"
+
+
+def diff_paths(a: str | os.PathLike, b: str | os.PathLike) -> Divergence:
+    """Compare the behaviours stored at two paths (recordings or tree XML files)."""
+    return diverge(actions_of(a), actions_of(b), label(a), label(b))
