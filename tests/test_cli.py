@@ -169,3 +169,67 @@ def test_help_for_every_command() -> None:
         result = btlog(command, "--help")
         assert result.returncode == 0
         assert f"usage: btlog {command}" in result.stdout
+
+
+FAILS = str(RECORDINGS / "kitting-look-at-chuck-fails.mcap")
+
+
+def test_ask_and_explain_post_hoc() -> None:
+    result = btlog("ask", FAILS, "--at", "30s", "What went wrong?")
+    assert result.returncode == 0, result.stderr
+    assert result.stdout.strip() == ("I am retrying for attempt 1 to go insert large gear. "
+                                     "I could not insert large gear because look at chuck "
+                                     "failed.")
+    explained = btlog("explain", FAILS, "--at", "30s", "--json")
+    data = __import__("json").loads(explained.stdout)
+    assert [a["intent"] for a in data["answers"]] == [
+        "doing", "why", "subgoal", "goal", "how_subgoal", "how_goal", "wrong"]
+    assert data["answers"][3]["answer"] == "My goal is to build a gearbox kit."
+    assert data["moment"]["t_ns"] <= 30_000_000_000
+
+
+def test_ask_can_you_post_hoc_shows_the_tree_and_keeps_the_recording() -> None:
+    before = Path(FAILS).read_bytes()
+    result = btlog("ask", FAILS, "--at", "20s", "Can you insert large gear?")
+    assert result.returncode == 0, result.stderr
+    assert result.stdout.startswith("Yes. I will insert large gear after go insert large gear.")
+    assert "The tree after this insertion" in result.stdout
+    assert "◀ current" in result.stdout
+    assert Path(FAILS).read_bytes() == before
+
+
+def test_show_timeline_sql() -> None:
+    shown = btlog("show", FAILS, "--at", "30s", "--blackboard", "--plain")
+    assert shown.returncode == 0, shown.stderr
+    assert "back to approach for door  reach  #24  RUNNING  ◀ current" in shown.stdout
+    assert "insertion pose = " in shown.stdout
+    timeline = btlog("timeline", FAILS, "--node", "look at chuck", "--status", "FAILURE")
+    assert timeline.returncode == 0, timeline.stderr
+    assert timeline.stdout.count("RUNNING -> FAILURE") == 1
+    csv = btlog("sql", FAILS, str(RECORDINGS / "taxi-optimal.mcap"),
+                "SELECT count(DISTINCT run_id) AS runs FROM transitions", "--format", "csv")
+    assert csv.stdout.split() == ["runs", "2"]
+
+
+def test_replay_driven_by_a_script() -> None:
+    script = "n 5\nt 10\np 2\ng 30s\nask What went wrong?\nbb\nq\n"
+    env = {**os.environ, "PYTHONPATH": str(ROOT / "src"), "NO_COLOR": "1"}
+    result = subprocess.run([sys.executable, "-m", "btlog.cli.main", "replay", FAILS,
+                             "--plain", "--script", "-"], input=script, cwd=ROOT, env=env,
+                            capture_output=True, text=True, timeout=120, check=False)
+    assert result.returncode == 0, result.stderr
+    assert result.stdout.count("── event") == 6
+    assert "I could not insert large gear because look at chuck failed." in result.stdout
+    assert "[go insert large gear::2]" in result.stdout
+
+
+@pytest.mark.parametrize(("args", "words"), [
+    (["ask", FAILS, "--at", "99s", "What are you doing?"], ["after the end"]),
+    (["ask", FAILS, "--at", "soon", "What are you doing?"], ["unparseable moment"]),
+    (["ask", FAILS, "--at", "1s", "Sing a song"], ["I don't understand"]),
+    (["sql", FAILS, "SELEC 1"], ["SQL error"]),
+    (["show", "/no/such/file.mcap"], ["file.mcap"]),
+    (["timeline", FAILS, "--status", "DANCING"], ["DANCING"]),
+])
+def test_query_bad_input(args: list[str], words: list[str]) -> None:
+    assert_bad_input(btlog(*args), *words)

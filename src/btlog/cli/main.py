@@ -132,6 +132,16 @@ def _handlers():
     }
 
 
+def _is_bad_input(error: BaseException) -> bool:
+    """Errors that describe the user's input (files, values, SQL), not a bug of btlog."""
+    import duckdb
+
+    from btlog.executor.behavior import NodeExecutionError
+
+    return isinstance(error, ValueError | OSError | BadInput | duckdb.Error |
+                      NodeExecutionError)
+
+
 def _one_line(error: BaseException) -> str:
     text = str(error).strip() or type(error).__name__
     return " ".join(text.split())
