@@ -16,6 +16,9 @@ class Status(IntEnum):
     FAILURE = 3
     SKIPPED = 4
 
+    def __str__(self) -> str:
+        return self.name
+
     @property
     def completed(self) -> bool:
         """True for SUCCESS and FAILURE."""

@@ -18,9 +18,14 @@ from btlog.executor.behavior import Behavior, ControlBehavior, NodeExecutionErro
 from btlog.status import FAILURE, IDLE, RUNNING, SKIPPED, SUCCESS, Status
 
 
-class Sequence(ControlBehavior):
-    """Tick children in order from where it left off; FAILURE resets everything and fails;
-    all done (SUCCESS or SKIPPED) resets and succeeds (SKIPPED if every child skipped)."""
+class _InOrder(ControlBehavior):
+    """Shared policy of Sequence and Fallback: tick children in order from where it left
+    off; the ``decisive`` result resets every child and is returned; the other completed
+    result (or SKIPPED) moves to the next child; when all are done, reset and return
+    ``exhausted`` (SKIPPED if every child skipped)."""
+
+    decisive: Status
+    exhausted: Status
 
     def __init__(self, *args) -> None:
         super().__init__(*args)
@@ -36,21 +41,21 @@ class Sequence(ControlBehavior):
             result = children[self.index].execute_tick()
             if result is RUNNING:
                 return RUNNING
-            if result is FAILURE:
+            if result is self.decisive:
                 self.reset_children()
                 self.index = 0
-                return FAILURE
+                return result
             if result is SKIPPED:
                 self.skipped += 1
             self.index += 1
-        return self._finish(SUCCESS)
+        return self._finish()
 
-    def _finish(self, result: Status) -> Status:
+    def _finish(self) -> Status:
         all_skipped = self.skipped == len(self.children)
         self.reset_children()
         self.index = 0
         self.skipped = 0
-        return SKIPPED if all_skipped else result
+        return SKIPPED if all_skipped else self.exhausted
 
     def halt(self) -> None:
         self.index = 0
@@ -62,6 +67,14 @@ class Sequence(ControlBehavior):
         super().insert_child(index, child)
         if index <= self.index and self.status is RUNNING and index < len(self.children) - 1:
             self.index += 1
+
+
+class Sequence(_InOrder):
+    """Tick children in order from where it left off; FAILURE resets everything and fails;
+    all done (SUCCESS or SKIPPED) resets and succeeds (SKIPPED if every child skipped)."""
+
+    decisive = FAILURE
+    exhausted = SUCCESS
 
 
 class SequenceWithMemory(Sequence):
@@ -92,49 +105,18 @@ class SequenceWithMemory(Sequence):
             if before is IDLE and self.index < len(children):
                 self.runtime.wake_up = True
                 return RUNNING
-        return self._finish(SUCCESS)
+        return self._finish()
 
     def halt(self) -> None:
         ControlBehavior.halt(self)
 
 
-class Fallback(ControlBehavior):
+class Fallback(_InOrder):
     """Tick children in order from where it left off; SUCCESS resets everything and
     succeeds; all failed (or skipped) resets and fails (SKIPPED if every child skipped)."""
 
-    def __init__(self, *args) -> None:
-        super().__init__(*args)
-        self.index = 0
-        self.skipped = 0
-
-    def tick(self) -> Status:
-        if self.status is IDLE:
-            self.skipped = 0
-        self.set_status(RUNNING)
-        children = self.children
-        while self.index < len(children):
-            result = children[self.index].execute_tick()
-            if result is RUNNING:
-                return RUNNING
-            if result is SUCCESS:
-                self.reset_children()
-                self.index = 0
-                return SUCCESS
-            if result is SKIPPED:
-                self.skipped += 1
-            self.index += 1
-        all_skipped = self.skipped == len(children)
-        self.reset_children()
-        self.index = 0
-        self.skipped = 0
-        return SKIPPED if all_skipped else FAILURE
-
-    def halt(self) -> None:
-        self.index = 0
-        self.skipped = 0
-        super().halt()
-
-    insert_child = Sequence.insert_child
+    decisive = SUCCESS
+    exhausted = FAILURE
 
 
 class _Reactive(ControlBehavior):
