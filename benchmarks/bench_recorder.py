@@ -46,7 +46,7 @@ def compressions() -> list[CompressionType]:
     """The chunk compressions the installed mcap package can write."""
     found = [CompressionType.ZSTD, CompressionType.NONE]
     try:
-        import lz4.frame
+        import lz4.frame  # noqa: F401
     except ImportError:
         return found
     return [CompressionType.ZSTD, CompressionType.LZ4, CompressionType.NONE]

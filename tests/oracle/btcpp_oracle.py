@@ -73,7 +73,7 @@ class _StdoutCapture:
         sys.stdout.flush()
         self._libc = ctypes.CDLL(None)
         self.saved_fd = os.dup(1)
-        self._file = tempfile.TemporaryFile()
+        self._file = tempfile.TemporaryFile()  # noqa: SIM115
         os.dup2(self._file.fileno(), 1)
         self._offset = 0
         self._partial = b""

@@ -15,7 +15,7 @@ ORACLE_SCRIPT = os.path.join(os.path.dirname(os.path.abspath(__file__)), "btcpp_
 def have_behaviortreepy() -> bool:
     """Return True if ``behaviortreepy`` can be imported by this interpreter."""
     try:
-        import behaviortreepy
+        import behaviortreepy  # noqa: F401
     except ImportError:
         return False
     return True

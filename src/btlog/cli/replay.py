@@ -83,7 +83,7 @@ def _commands(script: str | None) -> Iterator[str]:
             except EOFError:
                 return
     else:
-        stream = sys.stdin if script == "-" else open(script, encoding="utf-8")
+        stream = sys.stdin if script == "-" else open(script, encoding="utf-8")  # noqa: SIM115
         with stream:
             yield from (line.rstrip("\n") for line in stream)
 

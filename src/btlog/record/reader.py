@@ -102,7 +102,7 @@ def open_mcap(path: str | os.PathLike) -> tuple[IO[bytes], int]:
     Returns the open file (the caller closes it) and its size."""
     name = os.fspath(path)
     try:
-        file = open(name, "rb")
+        file = open(name, "rb")  # noqa: SIM115
     except FileNotFoundError:
         raise RecordingError(f"{name}: no such file") from None
     except IsADirectoryError:

@@ -131,7 +131,7 @@ class Recorder(Subscriber):
         self._status_rows: list[tuple] = []
         self._write_rows: list[tuple] = []
         self._tick_rows: list[tuple] = []
-        self._file = open(self.path, "wb")
+        self._file = open(self.path, "wb")  # noqa: SIM115
         try:
             self._writer = Writer(self._file, chunk_size=chunk_size, compression=compression)
             self._channels = self._start(tree, attachments)
