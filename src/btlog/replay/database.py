@@ -1,0 +1,583 @@
+"""The read model as a Python API: open runs, the state at any moment, the timeline, SQL.
+
+``open_runs(*paths)`` gives a ``RunDatabase``: one DuckDB connection in which every run
+is a *catalog* of its own (the ingested tables of design §5 plus the snapshots), and the
+main schema holds views named like the tables (``runs``, ``nodes``, ``transitions``,
+``blackboard``, ``ticks``, ``mutations``) that union all the runs, ``run_id`` in every
+row. Users write SQL against those views; ``Run`` objects query their own catalog.
+
+**The cache.** Ingesting a long run costs seconds, so each recording's catalog is a
+DuckDB file kept beside it, ``<recording>.duckdb`` (ignored by git), or, when that folder
+is not writable, in ``$XDG_CACHE_HOME/btlog`` (``~/.cache/btlog``). The cache records
+what it was built from — the recording's absolute path, size and ``mtime_ns``, btlog's
+schema version, the read model's layout version and the snapshot interval — and is used
+only when all of them still match; otherwise it is rebuilt. A cache is built under a
+temporary name and moved into place when complete, so a reader never sees half of one,
+and it is attached read-only, so SQL cannot damage it. Several runs are *attached*, not
+copied: opening a second cached run costs milliseconds whatever its size. With
+``cache=False`` every run is ingested into an in-memory catalog instead.
+
+**The state at a moment.** ``Run.state_at(moment)`` resolves the moment to a number of
+events (``btlog.replay.moments``) and reads one row of ``_snapshots``: the state every
+``snapshot_every`` events (written at ingestion) together with the block of events up to
+the next snapshot. It folds only the events of that block up to the moment with
+``StateProjection`` — never the run from its start — so every moment of a long run
+costs the same: one point query and at most ``snapshot_every`` events. Times and ticks
+are resolved from the same rows (each knows the time and tick of its first event). The
+tree's shape comes from the same fold: mutations before the snapshot are re-applied to
+the recorded tree, later ones are folded with the tail.
+
+Errors are ``ReplayError`` (unreadable recordings, unknown runs or nodes, bad SQL) or
+``MomentError`` (moments), both ``ValueError`` with a one-line message.
+"""
+
+from __future__ import annotations
+
+import hashlib
+import os
+import re
+import uuid
+from bisect import bisect_right
+from collections import OrderedDict
+from collections.abc import Sequence
+from concurrent.futures import ThreadPoolExecutor
+from dataclasses import dataclass
+from datetime import datetime
+from pathlib import Path
+from typing import Any, NamedTuple
+
+import duckdb
+import orjson
+
+import btlog
+from btlog.record.reader import RecordingError
+from btlog.replay import ingest as ingestion
+from btlog.replay.ingest import first_row
+from btlog.replay.moments import (
+    BEFORE_END,
+    END,
+    SEQ,
+    TICK,
+    TIME,
+    WALL,
+    Moment,
+    MomentError,
+    Resolved,
+    RunExtent,
+    parse_moment,
+    parse_started_at,
+    resolve_moment,
+)
+from btlog.replay.state import State, StateProjection
+from btlog.status import Status
+from btlog.tree.model import Tree
+
+CACHE_SUFFIX = ".duckdb"
+#: What a run id may hold (it is written into the views' SQL).
+_SAFE_ID = re.compile(r"[A-Za-z0-9_]{1,64}")
+#: A key past every time and tick (the first key of an empty block).
+_PAST = 2**63 - 1
+
+
+class ReplayError(ValueError):
+    """A run that cannot be opened or queried as asked; one line naming what is wrong."""
+
+
+@dataclass(frozen=True)
+class RunInfo:
+    """One run of a database: the ``runs`` row and what ingestion noticed."""
+
+    run_id: str
+    file: str
+    tree_name: str
+    started_at: datetime | None
+    duration_ns: int
+    final_status: str | None
+    domain: str | None
+    seed: int | None
+    events: int
+    last_tick: int
+    truncated: bool
+    warnings: tuple[str, ...]
+    metadata: dict
+
+
+class TimelineEntry(NamedTuple):
+    """One event of a timeline: a status change (``kind == "status"``), a blackboard
+    write (``"write"``: ``uid`` is the writer) or a tree mutation (``"mutation"``: ``uid``
+    is the inserted subtree's root)."""
+
+    seq: int
+    t_ns: int
+    tick: int
+    kind: str
+    uid: int | None
+    node: str | None
+    prev_status: str | None
+    status: str | None
+    scope: str | None
+    key: str | None
+    value: Any
+
+
+# -- opening ------------------------------------------------------------------------------
+def open_runs(*paths: str | os.PathLike, cache: bool = True,
+              snapshot_every: int = ingestion.DEFAULT_SNAPSHOT_EVERY,
+              cache_dir: str | os.PathLike | None = None) -> RunDatabase:
+    """Open one or many recordings in one database (see the module docstring).
+
+    ``cache_dir`` puts the caches there instead of beside the recordings.
+    Raises ``ReplayError`` naming the file when one cannot be read.
+    """
+    if not paths:
+        raise ReplayError("open_runs needs at least one recording")
+    database = RunDatabase(snapshot_every)
+    try:
+        for path in dict.fromkeys(os.path.abspath(os.fspath(p)) for p in paths):
+            database.add(path, cache=cache, cache_dir=cache_dir)
+    except BaseException:
+        database.close()
+        raise
+    return database
+
+
+def cache_location(recording: str | os.PathLike,
+                   cache_dir: str | os.PathLike | None = None) -> Path:
+    """Where the cache of ``recording`` lives: ``cache_dir`` if given, else beside the
+    recording when its folder is writable, else the user's cache folder."""
+    path = Path(os.path.abspath(os.fspath(recording)))
+    if cache_dir is not None:
+        return Path(cache_dir) / _cache_name(path)
+    if os.access(path.parent, os.W_OK):
+        return path.with_name(path.name + CACHE_SUFFIX)
+    return user_cache_dir() / _cache_name(path)
+
+
+def user_cache_dir() -> Path:
+    """``$XDG_CACHE_HOME/btlog``, or ``~/.cache/btlog``."""
+    base = os.environ.get("XDG_CACHE_HOME") or os.path.join(os.path.expanduser("~"), ".cache")
+    return Path(base) / "btlog"
+
+
+def _cache_name(path: Path) -> str:
+    digest = hashlib.sha256(str(path).encode()).hexdigest()[:16]
+    return f"{path.name}-{digest}{CACHE_SUFFIX}"
+
+
+def _cache_key(path: str, snapshot_every: int) -> tuple:
+    stat = os.stat(path)
+    return (path, stat.st_size, stat.st_mtime_ns, btlog.SCHEMA_VERSION,
+            ingestion.INGEST_VERSION, snapshot_every)
+
+
+def _build_cache(path: str, cache: Path, snapshot_every: int) -> ingestion.IngestReport:
+    """Ingest ``path`` into a new cache file, moved into place when complete.
+
+    The tables are loaded in memory; then, while the snapshots are folded (Python, on
+    this thread), a worker thread writes the tables to the file (DuckDB, compressing
+    them in C++), so the two overlap; the snapshots follow them into the file.
+    """
+    cache.parent.mkdir(parents=True, exist_ok=True)
+    temporary = cache.with_name(f".{cache.name}.{os.getpid()}-{uuid.uuid4().hex[:8]}"
+                                f"{CACHE_SUFFIX}")
+    con = duckdb.connect()
+    try:
+        ingestion.create_schema(con)
+        report = ingestion.load_tables(con, path, snapshot_every=snapshot_every)
+        con.execute("ATTACH $path AS cache_file", {"path": str(temporary)})
+        with ThreadPoolExecutor(max_workers=1, thread_name_prefix="btlog-cache") as pool:
+            copying = pool.submit(_copy_tables, con.cursor())
+            try:
+                report = ingestion.add_snapshots(con, report)
+            finally:
+                copying.result()
+        for table in ("_snapshots", "_ingest"):
+            con.execute(f"DELETE FROM cache_file.{table}")
+            con.execute(f"INSERT INTO cache_file.{table} SELECT * FROM memory.{table}")
+        con.execute("DETACH cache_file")
+        os.replace(temporary, cache)
+    finally:
+        con.close()
+        for leftover in (temporary, Path(f"{temporary}.wal")):
+            leftover.unlink(missing_ok=True)
+    return report
+
+
+def _copy_tables(cursor: duckdb.DuckDBPyConnection) -> None:
+    """Copy the in-memory database (types and tables) into the attached cache file."""
+    try:
+        cursor.execute("COPY FROM DATABASE memory TO cache_file")
+    finally:
+        cursor.close()
+
+
+# -- the database ---------------------------------------------------------------------------
+class RunDatabase:
+    """Several runs in one DuckDB connection (build it with ``open_runs``)."""
+
+    def __init__(self, snapshot_every: int = ingestion.DEFAULT_SNAPSHOT_EVERY) -> None:
+        self.con = duckdb.connect()
+        self.snapshot_every = snapshot_every
+        self.ingested: list[ingestion.IngestReport] = []
+        self._runs: list[Run] = []
+
+    # -- adding runs ---------------------------------------------------------------------
+    def add(self, path: str | os.PathLike, cache: bool = True,
+            cache_dir: str | os.PathLike | None = None) -> Run:
+        """Open one more recording (from its cache when valid) and return its run."""
+        name = os.path.abspath(os.fspath(path))
+        catalog = f"run{len(self._runs)}"
+        try:
+            if cache:
+                self._attach_cached(name, catalog, cache_dir)
+            else:
+                self._ingest_in_memory(name, catalog)
+        except RecordingError as error:
+            raise ReplayError(str(error)) from None
+        except OSError as error:
+            raise ReplayError(f"{name}: cannot read: {error.strerror or error}") from None
+        except duckdb.Error as error:
+            raise ReplayError(f"{name}: cannot build its read model: "
+                              f"{_one_line(error)}") from None
+        run = Run(self, catalog, self._unique_id(catalog))
+        self._runs.append(run)
+        self._create_views()
+        return run
+
+    def _attach_cached(self, path: str, catalog: str, cache_dir) -> None:
+        """Attach the recording's cache, (re)building it first unless it is current."""
+        key = _cache_key(path, self.snapshot_every)
+        cache = cache_location(path, cache_dir)
+        if self._attach_if_current(cache, catalog, key):
+            return
+        try:
+            self.ingested.append(_build_cache(path, cache, self.snapshot_every))
+        except (OSError, duckdb.IOException):
+            if cache_dir is not None or cache.parent == user_cache_dir():
+                raise
+            cache = user_cache_dir() / _cache_name(Path(path))
+            if self._attach_if_current(cache, catalog, key):
+                return
+            self.ingested.append(_build_cache(path, cache, self.snapshot_every))
+        self.con.execute(f"ATTACH $path AS {catalog} (READ_ONLY)", {"path": str(cache)})
+
+    def _attach_if_current(self, cache: Path, catalog: str, key: tuple) -> bool:
+        """Attach ``cache`` if it exists and was built from this very recording."""
+        if not cache.is_file():
+            return False
+        try:
+            self.con.execute(f"ATTACH $path AS {catalog} (READ_ONLY)", {"path": str(cache)})
+        except duckdb.Error:
+            return False
+        try:
+            rows = self.con.execute(
+                f"SELECT file, size, mtime_ns, schema_version, ingest_version, "
+                f"snapshot_every FROM {catalog}._ingest").fetchall()
+        except duckdb.Error:
+            rows = []
+        if rows == [key]:
+            return True
+        self.con.execute(f"DETACH {catalog}")
+        return False
+
+    def _ingest_in_memory(self, path: str, catalog: str) -> None:
+        self.con.execute(f"ATTACH ':memory:' AS {catalog}")
+        self.con.execute(f"USE {catalog}")
+        try:
+            ingestion.create_schema(self.con)
+            self.ingested.append(ingestion.ingest(self.con, path,
+                                                  snapshot_every=self.snapshot_every))
+        except BaseException:
+            self.con.execute("USE memory")
+            self.con.execute(f"DETACH {catalog}")
+            raise
+        self.con.execute("USE memory")
+
+    def _unique_id(self, catalog: str) -> str:
+        """The run's id, with a suffix when another open run has it already."""
+        (stored,) = first_row(self.con, f"SELECT run_id FROM {catalog}._ingest")
+        if not _SAFE_ID.fullmatch(stored):  # ids go into view definitions
+            stored = catalog
+        taken = {run.run_id for run in self._runs}
+        run_id, number = stored, 1
+        while run_id in taken:
+            number += 1
+            run_id = f"{stored}_{number}"
+        return run_id
+
+    def _create_views(self) -> None:
+        """The public tables as views over every run's catalog (run ids made unique)."""
+        for table in ingestion.PUBLIC_TABLES:
+            parts = [f"SELECT * REPLACE ('{run.run_id}' AS run_id) FROM {run.catalog}.{table}"
+                     for run in self._runs]
+            self.con.execute(f"CREATE OR REPLACE VIEW memory.main.{table} AS "
+                             + " UNION ALL ".join(parts))
+
+    # -- using it ------------------------------------------------------------------------
+    @property
+    def runs(self) -> list[RunInfo]:
+        """Every run, in the order they were opened."""
+        return [run.info for run in self._runs]
+
+    def run(self, key: str | os.PathLike | None = None) -> Run:
+        """A run by run id or by recording path (the only run when ``key`` is None)."""
+        if key is None:
+            if len(self._runs) == 1:
+                return self._runs[0]
+            raise ReplayError(f"{len(self._runs)} runs are open; name one by run id or path")
+        for run in self._runs:
+            if run.run_id == str(key):
+                return run
+        path = os.path.abspath(os.fspath(key))
+        for run in self._runs:
+            if run.info.file == path:
+                return run
+        known = ", ".join(run.run_id for run in self._runs)
+        raise ReplayError(f"no run {str(key)!r} in this database (runs: {known})")
+
+    def sql(self, query: str, params: Sequence | dict | None = None
+            ) -> tuple[list[str], list[tuple]]:
+        """Run ``query`` (with ``params`` bound to its ``?`` or ``$name`` placeholders);
+        returns (column names, rows)."""
+        try:
+            cursor = self.con.execute(query, params) if params is not None else \
+                self.con.execute(query)
+            columns = [d[0] for d in cursor.description or ()]
+            rows = cursor.fetchall() if cursor.description else []
+        except duckdb.Error as error:
+            raise ReplayError(f"SQL error: {_one_line(error)}") from None
+        return columns, rows
+
+    def close(self) -> None:
+        """Close the connection (the caches stay on disk)."""
+        self.con.close()
+
+    def __enter__(self) -> RunDatabase:
+        return self
+
+    def __exit__(self, *exc_info: object) -> None:
+        self.close()
+
+
+def _one_line(error: BaseException) -> str:
+    return " ".join(str(error).split())
+
+
+# -- one run --------------------------------------------------------------------------------
+class Run:
+    """One run of a ``RunDatabase``: its tree, moments, states and timeline.
+
+    Snapshot rows are read on demand (one point query each) and the last few are kept
+    decoded, so nearby moments cost no query at all.
+    """
+
+    CACHED_BLOCKS = 8
+
+    def __init__(self, database: RunDatabase, catalog: str, run_id: str) -> None:
+        self.con = database.con
+        self.catalog = catalog
+        self.run_id = run_id
+        self._prefix = f"{catalog}."
+        row = first_row(
+            self.con, f"SELECT run_id, events, last_tick, truncated, warnings, snapshot_every, "
+            f"tree FROM {catalog}._ingest")
+        self._stored_id, events, last_tick, truncated, warnings, every, tree = row
+        self.snapshot_every = every
+        self.tree = Tree.from_description(orjson.loads(tree))
+        self.mutations = ingestion.load_mutations(self.con, self._stored_id, self._prefix)
+        self.info = self._info(events, last_tick, truncated, orjson.loads(warnings))
+        rows = self.con.execute(
+            f"SELECT first_t_ns, first_tick FROM {catalog}._snapshots WHERE run_id = $run_id "
+            f"ORDER BY seq", {"run_id": self._stored_id}).fetchall()
+        #: time and tick of the first event of each block (past the end for an empty one)
+        self._first_keys = {"t_ns": [_PAST if r[0] is None else r[0] for r in rows],
+                            "tick": [_PAST if r[1] is None else r[1] for r in rows]}
+        self._blocks: OrderedDict[int, tuple[dict, ingestion.EventBatch]] = OrderedDict()
+        started_ns, zone = parse_started_at(self.info.metadata.get("started_at"))
+        self.extent = RunExtent(events, self.info.duration_ns, last_tick, started_ns,
+                                self._count_at, self._count_after_tick, self._time_of, zone)
+
+    def _info(self, events: int, last_tick: int, truncated: bool, warnings: list) -> RunInfo:
+        row = first_row(
+            self.con, f"SELECT file, tree_name, started_at, duration_ns, final_status, domain, "
+            f"seed, metadata FROM {self.catalog}.runs")
+        file, tree_name, started_at, duration, final, domain, seed, metadata = row
+        return RunInfo(self.run_id, file, tree_name, started_at, duration, final, domain,
+                       seed, events, last_tick, truncated, tuple(warnings),
+                       orjson.loads(metadata))
+
+    def __repr__(self) -> str:
+        return f"<Run {self.run_id} {self.info.file} {self.info.events} events>"
+
+    # -- snapshot blocks -----------------------------------------------------------------
+    def _block(self, index: int) -> tuple[dict, ingestion.EventBatch]:
+        """Snapshot ``index``: the state before event ``index * snapshot_every`` (as JSON)
+        and the events up to the next snapshot."""
+        cached = self._blocks.get(index)
+        if cached is not None:
+            self._blocks.move_to_end(index)
+            return cached
+        seq = index * self.snapshot_every
+        state, events = first_row(
+            self.con, f"SELECT state, events FROM {self._prefix}_snapshots "
+            f"WHERE run_id = $run_id AND seq = $seq", {"run_id": self._stored_id, "seq": seq})
+        mutations = [m for m in self.mutations if seq <= m.seq < seq + self.snapshot_every]
+        block = (orjson.loads(state), ingestion.EventBatch.from_block(events, mutations))
+        self._blocks[index] = block
+        if len(self._blocks) > self.CACHED_BLOCKS:
+            self._blocks.popitem(last=False)
+        return block
+
+    # -- moments -------------------------------------------------------------------------
+    def resolve(self, moment: str | Moment) -> Resolved:
+        """The moment as a number of events to apply (MomentError when outside the run)."""
+        return resolve_moment(moment, self.extent)
+
+    def _count_where(self, attribute: str, limit: int) -> int:
+        """Events whose ``t_ns`` (or ``tick``) is at most ``limit``. Both never decrease
+        along seq, so the blocks' first keys find the one block to count in."""
+        index = bisect_right(self._first_keys[attribute], limit) - 1
+        if index < 0:
+            return 0
+        _state, batch = self._block(index)
+        bound = batch.bound_at_most(attribute, limit)
+        return index * self.snapshot_every if bound is None else bound
+
+    def _count_at(self, t_ns: int) -> int:
+        return self._count_where("t_ns", t_ns)
+
+    def _count_after_tick(self, tick: int) -> int:
+        return self._count_where("tick", tick)
+
+    def _time_of(self, count: int) -> int:
+        """The time of event ``count - 1`` (0 before any event)."""
+        if count <= 0:
+            return 0
+        _state, batch = self._block((count - 1) // self.snapshot_every)
+        keys = batch.keys_of(count - 1)
+        return 0 if keys is None else keys[0]
+
+    # -- states --------------------------------------------------------------------------
+    def state_at(self, moment: str | Moment) -> tuple[Tree, State]:
+        """(tree, state) at ``moment``: the tree's shape and every node's status, retry
+        counts, the blackboard… after all events up to it."""
+        return self.state_after(self.resolve(moment).count)
+
+    def tree_at(self, moment: str | Moment) -> Tree:
+        """The tree's shape at ``moment`` (mutations up to then applied)."""
+        return self.state_at(moment)[0]
+
+    def state_after(self, count: int) -> tuple[Tree, State]:
+        """(tree, state) after the first ``count`` events: the snapshot at or before
+        ``count`` plus the events between, folded with ``StateProjection``."""
+        if not 0 <= count <= self.extent.events:
+            raise ReplayError(f"run {self.run_id} has {self.extent.events} events; "
+                              f"cannot apply {count}")
+        index = count // self.snapshot_every
+        start = index * self.snapshot_every
+        snapshot, batch = self._block(index)
+        earlier = [m for m in self.mutations if m.seq < start]
+        projection = StateProjection(self.tree, State.from_json(snapshot, earlier))
+        batch.fold(projection, start, count)
+        return projection.tree, projection.state
+
+
+    # -- timeline ------------------------------------------------------------------------
+    def timeline(self, node: int | str | None = None, status: str | Status | None = None,
+                 start: str | Moment | None = None, end: str | Moment | None = None
+                 ) -> list[TimelineEntry]:
+        """The events from ``start`` (at or after it) to ``end`` (up to it), in seq order.
+
+        ``node`` (a uid, or a name, type or path as in outcomes files) keeps that node's
+        status changes, its writes and the mutations inserting it; ``status`` keeps the
+        status changes to that status.
+        """
+        lo = 0 if start is None else self._first_at(parse_moment(start))
+        hi = self.extent.events if end is None else self.resolve(end).count
+        uids = None if node is None else self._node_uids(node)
+        wanted = None if status is None else _status_name(status)
+        rows = self.con.execute(self._timeline_query(uids is not None, wanted is not None),
+                                self._timeline_params(lo, hi, uids, wanted)).fetchall()
+        names = {n.uid: n.description for n in self._final_tree()}
+        return [TimelineEntry(seq, t, tick, kind, uid, names.get(uid), prev, new, scope, key,
+                              None if value is None else orjson.loads(value))
+                for seq, t, tick, kind, uid, prev, new, scope, key, value in rows]
+
+    def _first_at(self, moment: Moment) -> int:
+        """The first event at or after a start moment."""
+        resolved = resolve_moment(moment, self.extent)
+        if moment.kind == SEQ:
+            return moment.value
+        if moment.kind == TICK:
+            return self._count_after_tick(moment.value - 1)
+        if moment.kind == END:
+            return resolved.count
+        assert moment.kind in (TIME, BEFORE_END, WALL)
+        return self._count_at(resolved.t_ns - 1)
+
+    def _timeline_query(self, by_node: bool, by_status: bool) -> str:
+        p = self._prefix
+        node = " AND list_contains($uids, {c})" if by_node else ""
+        range_ = "run_id = $run_id AND seq >= $lo AND seq < $hi"
+        status = " AND status = $status" if by_status else ""
+        parts = [f"""SELECT seq, t_ns, tick, 'status' AS kind, uid, prev_status::VARCHAR,
+                status::VARCHAR, NULL, NULL, NULL FROM {p}transitions
+                WHERE {range_}{node.format(c="uid")}{status}"""]
+        if not by_status:
+            parts.append(f"""SELECT seq, t_ns, tick, 'write', writer_uid, NULL, NULL, scope,
+                key, value::VARCHAR FROM {p}blackboard WHERE {range_}
+                {node.format(c="writer_uid")}""")
+            parts.append(f"""SELECT seq, t_ns, tick, 'mutation',
+                (message -> 'nodes' -> 0 ->> 'uid')::INTEGER, NULL, NULL, NULL, NULL, NULL
+                FROM {p}_mutations WHERE {range_}
+                {node.format(c="(message -> 'nodes' -> 0 ->> 'uid')::INTEGER")}""")
+        return " UNION ALL ".join(parts) + " ORDER BY seq"
+
+    def _timeline_params(self, lo: int, hi: int, uids: list[int] | None,
+                         status: str | None) -> dict:
+        params: dict[str, Any] = {"run_id": self._stored_id, "lo": lo, "hi": hi}
+        if uids is not None:
+            params["uids"] = uids
+        if status is not None:
+            params["status"] = status
+        return params
+
+    def _final_tree(self) -> Tree:
+        tree = Tree.from_description(self.tree.describe())
+        projection = StateProjection(tree, State(mutations=list(self.mutations)))
+        return projection.tree
+
+    def _node_uids(self, node: int | str) -> list[int]:
+        tree = self._final_tree()
+        if isinstance(node, int) or (isinstance(node, str) and node.isdigit()):
+            if int(node) in tree.nodes:
+                return [int(node)]
+            raise ReplayError(f"run {self.run_id} has no node with uid {node}")
+        found = tree.find(str(node))
+        if not found:
+            raise ReplayError(f"no node of run {self.run_id} matches {node!r} "
+                              "(a name, a type of nameless nodes, or a path)")
+        return [n.uid for n in found]
+
+    # -- answers asked live ---------------------------------------------------------------
+    def answers(self) -> list[dict]:
+        """The questions asked live during the run and their recorded answers."""
+        rows = self.con.execute(
+            f"SELECT seq, t_ns, tick, question, intent, answer FROM {self._prefix}_answers "
+            f"WHERE run_id = $run_id ORDER BY seq", {"run_id": self._stored_id}).fetchall()
+        keys = ("seq", "t_ns", "tick", "question", "intent", "answer")
+        return [dict(zip(keys, row, strict=True)) for row in rows]
+
+
+def _status_name(status: str | Status) -> str:
+    if isinstance(status, Status):
+        return status.name
+    name = str(status).strip().upper()
+    if name not in ingestion.STATUS_VALUES:
+        raise ReplayError(f"unknown status {status!r} (expected one of "
+                          f"{', '.join(ingestion.STATUS_VALUES)})")
+    return name
+
+
+__all__ = ["MomentError", "ReplayError", "Run", "RunDatabase", "RunInfo", "TimelineEntry",
+           "cache_location", "open_runs", "user_cache_dir"]

@@ -1,0 +1,237 @@
+"""Moments: what ``--at WHEN`` means, and how many events it covers.
+
+A moment names a point of a run (design §6). Whatever its form, it comes down to one
+number: how many events to apply. The state at a moment is the fold of the first
+``count`` events (seq ``0 … count-1``); for a time ``t`` that is every event with
+``t_ns <= t``, because event times never decrease along ``seq``.
+
+The forms, parsed by ``parse_moment`` into a ``Moment``:
+
+==================  ===============================================================
+``12.5`` ``12.5s``  seconds since the run started (``1500ms``, ``250us``, ``100ns``)
+``-2s``             two seconds before the end of the run
+``tick:N``          right after tick N: every event of ticks ``<= N`` (tick 0 holds
+                    the writes made before the first tick)
+``seq:N``           right after event N: ``N + 1`` events
+``end``             every event
+ISO-8601            a wall time, e.g. ``2025-01-31T12:00:03.5+00:00``; measured from
+                    the run's start wall time (metadata ``started_at``). A time
+                    without a zone is read in the zone of the start time.
+==================  ===============================================================
+
+Parsing needs nothing but the text. ``resolve_moment`` then checks the moment against a
+run, given as a ``RunExtent`` (its duration, its event count, its last tick, its start
+wall time, and two look-ups answered by the read model) and returns a ``Resolved``
+moment. Every problem is a ``MomentError`` whose one-line message names the value and
+the reason, e.g. ``moment '99s' is after the end of the run (12.3 s)``.
+"""
+
+from __future__ import annotations
+
+import re
+from collections.abc import Callable
+from dataclasses import dataclass
+from datetime import UTC, datetime
+
+TIME = "time"
+BEFORE_END = "before_end"
+TICK = "tick"
+SEQ = "seq"
+END = "end"
+WALL = "wall"
+
+_UNITS = {"": 1_000_000_000, "s": 1_000_000_000, "ms": 1_000_000, "us": 1_000, "µs": 1_000,
+          "ns": 1}
+_DURATION = re.compile(r"^(?P<sign>[+-]?)(?P<number>\d+(?:\.\d*)?|\.\d+)\s*"
+                       r"(?P<unit>s|ms|us|µs|ns)?$")
+_COUNTER = re.compile(r"^(?P<kind>tick|seq)\s*:\s*(?P<number>\d+)$")
+_ISO_HINT = re.compile(r"^\d{4}-\d{2}-\d{2}")
+
+
+class MomentError(ValueError):
+    """A moment that cannot be parsed or lies outside the run; one line, naming the value."""
+
+
+@dataclass(frozen=True)
+class Moment:
+    """A parsed moment: its ``kind`` (time, before_end, tick, seq, end, wall) and ``value``
+    (ns for time and before_end, N for tick and seq, ns since the epoch for wall;
+    ``naive`` for a wall time written without a zone, its value read as if UTC)."""
+
+    kind: str
+    value: int
+    text: str
+    naive: bool = False
+
+    def __str__(self) -> str:
+        return self.text
+
+
+@dataclass(frozen=True)
+class Resolved:
+    """A moment resolved against a run: apply the events with seq below ``count`` (the
+    first ``count`` events, seqs being gap-free).
+
+    ``t_ns`` is the moment's time since the run started (for ``tick:``, ``seq:`` and
+    ``end``, the time of the last event applied; 0 when none is).
+    """
+
+    moment: Moment
+    count: int
+    t_ns: int
+
+
+@dataclass(frozen=True)
+class RunExtent:
+    """What resolving a moment needs to know about a run.
+
+    ``count_at(t_ns)`` is the number of events with ``t_ns`` at most ``t_ns``;
+    ``count_after_tick(n)`` the number of events of ticks up to ``n``; ``time_of(count)``
+    the time of event ``count - 1`` (0 for ``count == 0``). ``started_at_ns`` is the
+    start wall time in ns since the epoch (None when the recording has none).
+    """
+
+    events: int
+    duration_ns: int
+    last_tick: int
+    started_at_ns: int | None
+    count_at: Callable[[int], int]
+    count_after_tick: Callable[[int], int]
+    time_of: Callable[[int], int]
+    started_at_zone: object = UTC
+
+
+def parse_moment(text: str | Moment) -> Moment:
+    """Parse ``--at WHEN`` (see the module docstring); MomentError if it is no moment."""
+    if isinstance(text, Moment):
+        return text
+    if not isinstance(text, str):
+        raise MomentError(f"unparseable moment {text!r}: expected text such as '12.5s'")
+    value = text.strip()
+    if value.lower() == "end":
+        return Moment(END, 0, text)
+    counter = _COUNTER.match(value.lower())
+    if counter:
+        return Moment(counter["kind"], int(counter["number"]), text)
+    duration = _DURATION.match(value)
+    if duration:
+        return _duration(duration, text)
+    if _ISO_HINT.match(value):
+        return _wall(value, text)
+    raise MomentError(f"unparseable moment {text!r}: expected seconds (12.5, 12.5s, 1500ms, "
+                      "250us, 100ns), -2s, tick:N, seq:N, end or an ISO-8601 time")
+
+
+def _duration(match: re.Match, text: str) -> Moment:
+    number = match["number"]
+    whole, _, fraction = number.partition(".")
+    scale = _UNITS[match["unit"] or ""]
+    ns = int(whole or "0") * scale
+    if fraction:
+        denominator = 10 ** len(fraction)
+        ns += (int(fraction) * scale + denominator // 2) // denominator
+    if match["sign"] == "-":
+        return Moment(BEFORE_END, ns, text)
+    return Moment(TIME, ns, text)
+
+
+def _wall(value: str, text: str) -> Moment:
+    """An ISO-8601 time; one without a zone keeps its clock reading (``naive``)."""
+    try:
+        moment = datetime.fromisoformat(value)
+    except ValueError:
+        raise MomentError(f"unparseable moment {text!r}: not a valid ISO-8601 time") from None
+    naive = moment.tzinfo is None
+    return Moment(WALL, _epoch_ns(moment.replace(tzinfo=UTC) if naive else moment), text, naive)
+
+
+def _epoch_ns(moment: datetime) -> int:
+    delta = moment - datetime(1970, 1, 1, tzinfo=UTC)
+    return (delta.days * 86_400 + delta.seconds) * 1_000_000_000 + delta.microseconds * 1_000
+
+
+def parse_started_at(text: str | None) -> tuple[int | None, object]:
+    """(ns since the epoch, zone) of the metadata's ``started_at``; (None, UTC) if absent
+    or unreadable."""
+    if not text:
+        return None, UTC
+    try:
+        moment = datetime.fromisoformat(text)
+    except ValueError:
+        return None, UTC
+    if moment.tzinfo is None:
+        moment = moment.replace(tzinfo=UTC)
+    return _epoch_ns(moment), moment.tzinfo
+
+
+def resolve_moment(moment: str | Moment, run: RunExtent) -> Resolved:
+    """How many events the moment covers in ``run``; MomentError when it is outside it."""
+    moment = parse_moment(moment)
+    if moment.kind == END:
+        return Resolved(moment, run.events, run.time_of(run.events))
+    if moment.kind == SEQ:
+        return _at_seq(moment, run)
+    if moment.kind == TICK:
+        return _at_tick(moment, run)
+    return _at_time(moment, _time_since_start(moment, run), run)
+
+
+def _at_seq(moment: Moment, run: RunExtent) -> Resolved:
+    if run.events == 0:
+        raise MomentError(f"moment {moment.text!r} is outside the run: it has no events")
+    if moment.value >= run.events:
+        raise MomentError(f"moment {moment.text!r} is after the end of the run "
+                          f"(last event seq:{run.events - 1})")
+    count = moment.value + 1
+    return Resolved(moment, count, run.time_of(count))
+
+
+def _at_tick(moment: Moment, run: RunExtent) -> Resolved:
+    if moment.value > run.last_tick:
+        raise MomentError(f"moment {moment.text!r} is after the end of the run "
+                          f"(last tick {run.last_tick})")
+    count = run.count_after_tick(moment.value)
+    return Resolved(moment, count, run.time_of(count))
+
+
+def _time_since_start(moment: Moment, run: RunExtent) -> int:
+    if moment.kind == TIME:
+        return moment.value
+    if moment.kind == BEFORE_END:
+        t_ns = run.duration_ns - moment.value
+        if t_ns < 0:
+            raise MomentError(f"moment {moment.text!r} is before the start of the run "
+                              f"(it lasts {_seconds(run.duration_ns)})")
+        return t_ns
+    if run.started_at_ns is None:
+        raise MomentError(f"moment {moment.text!r} is a wall time, but the recording has "
+                          "no start time (metadata started_at)")
+    wall = moment.value
+    if moment.naive:
+        wall -= _zone_offset_ns(run.started_at_zone)
+    t_ns = wall - run.started_at_ns
+    if t_ns < 0:
+        raise MomentError(f"moment {moment.text!r} is before the start of the run "
+                          f"({_iso(run.started_at_ns, run.started_at_zone)})")
+    return t_ns
+
+
+def _zone_offset_ns(zone: object) -> int:
+    offset = datetime.now(zone).utcoffset()  # type: ignore[arg-type]
+    return 0 if offset is None else round(offset.total_seconds() * 1e9)
+
+
+def _at_time(moment: Moment, t_ns: int, run: RunExtent) -> Resolved:
+    if t_ns > run.duration_ns:
+        raise MomentError(f"moment {moment.text!r} is after the end of the run "
+                          f"({_seconds(run.duration_ns)})")
+    return Resolved(moment, run.count_at(t_ns), t_ns)
+
+
+def _seconds(ns: int) -> str:
+    return f"{ns / 1e9:.6g} s"
+
+
+def _iso(ns: int, zone: object) -> str:
+    moment = datetime.fromtimestamp(ns / 1e9, tz=zone)  # type: ignore[arg-type]
+    return moment.isoformat(timespec="microseconds")
