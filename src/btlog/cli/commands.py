@@ -66,10 +66,19 @@ def run(args: Namespace) -> int:
 
 
 # -- questions ---------------------------------------------------------------------------
-def _open_run(path: str):
+def _open_runs(*paths: str):
+    """Open recordings; on a terminal, say so while a first ingestion builds the cache."""
     from btlog.replay.database import open_runs
 
-    database = open_runs(path)
+    if not sys.stderr.isatty():
+        return open_runs(*paths)
+    with make_console(stderr=True).status("reading the recording (the first time builds "
+                                          "its cache)…"):
+        return open_runs(*paths)
+
+
+def _open_run(path: str):
+    database = _open_runs(path)
     return database, database.run(path)
 
 
@@ -173,9 +182,7 @@ def _timeline_line(row: dict) -> str:
 # -- sql ---------------------------------------------------------------------------------
 def sql(args: Namespace) -> int:
     """``btlog sql``: run a query over one or many runs."""
-    from btlog.replay.database import open_runs
-
-    database = open_runs(*args.runs)
+    database = _open_runs(*args.runs)
     try:
         columns, rows = database.sql(args.query)
     finally:
