@@ -104,11 +104,11 @@ def ask(args: Namespace) -> int:
         return 0
     print(result.text)
     if result.insertion is not None:
-        changed = apply_to_copy(tree, result.insertion)
+        changed = apply_to_copy(tree, result.insertion, seq=state.seq)
         console = make_console()
         console.print("\nThe tree after this insertion (the recording is unchanged):")
-        inserted = {n.uid for n in changed if n.added_seq is not None or n.uid >= tree.next_uid}
-        for line in tree_lines(changed, state, inserted):
+        current = {n.uid for n in current_nodes(tree, state)}
+        for line in tree_lines(changed, state, current):
             console.print(line)
     return 0
 

@@ -56,7 +56,7 @@ def node_label(node: Node, status: Status, current: bool) -> Text:
         text.append(f"  {safe(node.type)}", style="dim")
     text.append(f"  #{node.uid}", style="dim")
     text.append(f"  {status.name}", style=STATUS_STYLES[status])
-    if node.added_seq is not None:
+    if node.added_seq is not None and (node.parent is None or node.parent.added_seq is None):
         text.append(f"  (inserted at seq {node.added_seq})", style="magenta")
     if current:
         text.append("  ◀ current", style="bold magenta")
