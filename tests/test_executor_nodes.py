@@ -1648,8 +1648,6 @@ def test_script_bitwise_operators_bind_tighter_than_comparisons() -> None:
     assert r.roots == ["SUCCESS"]
 
 
-@pytest.mark.xfail(strict=True, reason="script: chained comparisons are evaluated as "
-                   "'(a > 2) > 1'; BT.CPP chains them: '(a > 2) && (2 > 1)'")
 def test_script_chained_comparisons() -> None:
     """BT.CPP parses ``x < y < z`` as a chain of comparisons (parseChainedComparison at HEAD;
     verified with BT.CPP 4.8.2: ``a > 2 > 1`` with a=3 is true)."""
@@ -1668,8 +1666,6 @@ def test_script_division_by_zero_is_infinite() -> None:
     assert r.roots == ["SUCCESS"]
 
 
-@pytest.mark.xfail(strict=True, reason="SetBlackboard output_key='{k}' writes entry k; BT.CPP "
-                   "reads the port, i.e. the entry named by k's value (here: missing -> error)")
 def test_set_blackboard_output_key_reference_is_read_through() -> None:
     """BT.CPP: ``getInput("output_key", output_key)`` (verified with BT.CPP 4.8.2: "missing
     port [output_key]" when entry k2 does not exist)."""
@@ -1678,8 +1674,6 @@ def test_set_blackboard_output_key_reference_is_read_through() -> None:
         executor.tick()
 
 
-@pytest.mark.xfail(strict=True, reason="UnsetBlackboard key='{k}' removes entry k; BT.CPP "
-                   "reads the port and removes the entry named by k's value")
 def test_unset_blackboard_key_reference_is_read_through() -> None:
     """BT.CPP: ``getInput("key", key); blackboard->unset(key)``. Verified with BT.CPP 4.8.2:
     with k = 1, ``key="{k}"`` removes entry "1", so k still exists afterwards."""
@@ -1689,8 +1683,6 @@ def test_unset_blackboard_key_reference_is_read_through() -> None:
     assert r.roots == ["SUCCESS"]
 
 
-@pytest.mark.xfail(strict=True, reason="SetBlackboard/UnsetBlackboard without their ports "
-                   "raise a bare KeyError instead of NodeExecutionError naming the node")
 @pytest.mark.parametrize("element", ['<SetBlackboard name="n" value="1"/>',
                                      '<SetBlackboard name="n" output_key="k"/>',
                                      '<UnsetBlackboard name="n"/>'])
@@ -1701,9 +1693,6 @@ def test_blackboard_nodes_without_ports_name_the_node(element: str) -> None:
         executor.tick()
 
 
-@pytest.mark.xfail(strict=True, reason="a syntax error in Script/ScriptCondition code or in "
-                   "Precondition 'if' raises a bare ScriptError from Executor() (no node, no "
-                   "file:line), while _skipIf & co. get a TreeError at load")
 @pytest.mark.parametrize("element", ['<Script name="n" code="x :="/>',
                                      '<ScriptCondition name="n" code="x =="/>',
                                      '<Precondition name="n" if="x =="><AlwaysSuccess/>'

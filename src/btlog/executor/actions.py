@@ -22,7 +22,7 @@ from typing import Any
 from btlog.executor.behavior import Behavior, NodeExecutionError
 from btlog.executor.script import compile_script, truthy
 from btlog.status import FAILURE, IDLE, RUNNING, SKIPPED, SUCCESS, Status
-from btlog.tree.model import INOUT, INPUT, OUTPUT, blackboard_key
+from btlog.tree.model import INOUT, INPUT, OUTPUT
 from btlog.tree.registry import PortSpec
 
 
@@ -150,11 +150,14 @@ class SetBlackboard(SyncAction):
     """Write ``value`` (a literal, or a copy of another ``{entry}``) to ``output_key``."""
 
     def tick(self) -> Status:
-        target = self.node.ports["output_key"].value
-        key = blackboard_key(target) or target
-        raw = self.node.ports["value"].value
-        source = blackboard_key(raw)
-        value = self.blackboard.get(source) if source is not None else raw
+        key = self.get_input("output_key")
+        source, raw = self._port("value")
+        if source is None:
+            value = raw
+        elif self.blackboard.exists(source):
+            value = self.blackboard.get(source)
+        else:
+            raise NodeExecutionError(self.node, f"blackboard entry {source!r} does not exist")
         self.blackboard.set(key, value)
         return SUCCESS
 
@@ -163,8 +166,7 @@ class UnsetBlackboard(SyncAction):
     """Remove the entry named by ``key``."""
 
     def tick(self) -> Status:
-        raw = self.node.ports["key"].value
-        self.blackboard.unset(blackboard_key(raw) or raw)
+        self.blackboard.unset(self.get_input("key"))
         return SUCCESS
 
 

@@ -135,6 +135,7 @@ _BINARY: dict[str, Callable[[Any, Any], Any]] = {
 # comparisons (unlike C), then arithmetic.
 _PRECEDENCE = [("||",), ("&&",), ("==", "!=", "<", "<=", ">", ">="), ("|", "^"), ("&",),
                ("+", "-", ".."), ("*", "/")]
+_COMPARISONS = 2
 
 
 def _text(value: Any) -> str:
@@ -205,12 +206,32 @@ class _Parser:
     def binary(self, level: int) -> Expr:
         if level == len(_PRECEDENCE):
             return self.unary()
+        if level == _COMPARISONS:
+            return self.comparison()
         left = self.binary(level + 1)
         while self.peek()[0] == "op" and self.peek()[1] in _PRECEDENCE[level]:
             op = self.take()[1]
             right = self.binary(level + 1)
             left = _logic(op, left, right) if op in ("&&", "||") else _binary(op, left, right)
         return left
+
+    def comparison(self) -> Expr:
+        """Comparisons chain as in BT.CPP: ``a < b < c`` means ``a < b && b < c``."""
+        operands = [self.binary(_COMPARISONS + 1)]
+        ops = []
+        while self.peek()[0] == "op" and self.peek()[1] in _PRECEDENCE[_COMPARISONS]:
+            ops.append(self.take()[1])
+            operands.append(self.binary(_COMPARISONS + 1))
+        if not ops:
+            return operands[0]
+        if len(ops) == 1:
+            return _binary(ops[0], operands[0], operands[1])
+        functions = [_BINARY[op] for op in ops]
+
+        def chain(env: Environment) -> bool:
+            values = [operand(env) for operand in operands]
+            return all(f(values[i], values[i + 1]) for i, f in enumerate(functions))
+        return chain
 
     def unary(self) -> Expr:
         kind, text = self.peek()

@@ -48,6 +48,8 @@ SUBTREE_TAGS = ("SubTree", "SubTreePlus")
 V3_IGNORED = frozenset({"__shared_blackboard", "__autoremap", "_description"})
 MODEL_KINDS = {"Action": ACTION, "Condition": CONDITION, "Control": CONTROL,
                "Decorator": DECORATOR, "SubTree": SUBTREE}
+#: Built-in nodes whose port holds a script, checked when the tree is loaded.
+SCRIPT_PORTS = {"Script": "code", "ScriptCondition": "code", "Precondition": "if"}
 MODEL_PORT_TAGS = {"input_port": "input", "output_port": "output", "inout_port": "inout"}
 
 
@@ -308,6 +310,9 @@ class _Loader:
         for port_name, spec in node_type.ports.items():
             if port_name not in ports and spec.default is not None:
                 ports[port_name] = Port(spec.default, spec.direction)
+        script_port = SCRIPT_PORTS.get(node_type.id) if strict else None
+        if script_port in ports and blackboard_key(ports[script_port].value) is None:
+            _check_script(ports[script_port].value, script_port, file, line)
         return ports, attributes
 
     def _build_subtree(self, element: etree._Element, file: str, parent: Node | None,
