@@ -59,20 +59,23 @@ class Live:
     """What the executor and the live projection said during a recorded run."""
 
     states: list[dict] = field(default_factory=list)  # after event seq, by seq
+    statuses: list[dict] = field(default_factory=list)  # the executor's, after event seq
     ticks: list[tuple[int, dict]] = field(default_factory=list)  # (events, statuses)
     shapes: dict[int, dict] = field(default_factory=dict)  # events → tree, at mutations
     log: EventLog = field(default_factory=EventLog)
 
 
 class Capture(Subscriber):
-    """Keeps the live state after each event and the executor's statuses after each tick
-    (subscribed after the projection, so it sees the state with the event applied)."""
+    """Keeps the live state and the executor's own statuses after each event and each
+    tick (subscribed after the projection, so it sees the state with the event applied;
+    the executor sets a status before it reports it)."""
 
     def __init__(self, projection, executor: Executor, live: Live) -> None:
         self.projection, self.executor, self.live = projection, executor, live
 
     def _event(self, *_args) -> None:
         self.live.states.append(canonical(self.projection.state))
+        self.live.statuses.append(dict(self.executor.statuses()))
 
     on_status = on_write = _event
 
@@ -110,14 +113,17 @@ def record(path: Path, tree_file: Path, outcomes: dict, max_ticks: int,
 
 
 def assert_replay_equals_live(run, live: Live, events: int | None = None) -> None:
-    """The rebuilt state after every event equals the live one; statuses at every tick
-    boundary equal the executor's; the tree's shape equals the live one at mutations."""
+    """The rebuilt state after every event equals the live one, and its statuses the
+    executor's own, there and at every tick boundary; the tree's shape equals the live
+    one at mutations."""
     events = len(live.states) if events is None else events
     assert run.info.events == events
     for count in range(1, events + 1):
         tree, state = run.state_after(count)
         assert state.seq == count
         assert canonical(state) == live.states[count - 1], f"state after {count} events"
+        statuses = live.statuses[count - 1]
+        assert {uid: state.status_of(uid) for uid in statuses} == statuses
         if count in live.shapes:
             assert tree.describe() == live.shapes[count]
     for count, statuses in live.ticks:
@@ -405,7 +411,7 @@ def test_a_truncated_recording_ingests_its_readable_prefix(tmp_path):
 
 # -- the cache --------------------------------------------------------------------------------
 def test_the_cache_is_reused_and_rebuilt_when_the_recording_changes(kitting, tmp_path):
-    original, _live = kitting
+    original, live = kitting
     path = tmp_path / "run.mcap"
     shutil.copyfile(original, path)
     with open_runs(path) as database:
@@ -415,7 +421,7 @@ def test_the_cache_is_reused_and_rebuilt_when_the_recording_changes(kitting, tmp
     built = cache.stat().st_mtime_ns
     with open_runs(path) as database:
         assert database.ingested == []
-        assert database.run().info.events == len(_live.states)
+        assert database.run().info.events == len(live.states)
     assert cache.stat().st_mtime_ns == built
     stat = path.stat()
     os.utime(path, ns=(stat.st_atime_ns, stat.st_mtime_ns + 1_000_000_000))
@@ -440,12 +446,29 @@ def test_cache_locations(tmp_path, monkeypatch):
     assert cache_location(tmp_path / "b" / "a.mcap", tmp_path / "caches") != elsewhere
 
 
+def test_the_user_cache_folder_is_used_when_beside_fails(kitting, tmp_path, monkeypatch):
+    original, live = kitting
+    monkeypatch.setenv("XDG_CACHE_HOME", str(tmp_path / "xdg"))
+    folder = tmp_path / "recordings"
+    folder.mkdir()
+    path = folder / "run.mcap"
+    shutil.copyfile(original, path)
+    (folder / "run.mcap.duckdb").mkdir()  # the place beside cannot hold a cache file
+    with open_runs(path) as database:
+        assert len(database.ingested) == 1
+        assert database.run().info.events == len(live.states)
+    [cache] = (tmp_path / "xdg" / "btlog").iterdir()
+    assert cache.name.startswith("run.mcap-") and cache.suffix == ".duckdb"
+    with open_runs(path) as database:
+        assert database.ingested == []
+
+
 def test_without_cache_nothing_is_written(kitting, tmp_path):
-    original, _live = kitting
+    original, live = kitting
     path = tmp_path / "run.mcap"
     shutil.copyfile(original, path)
     with open_runs(path, cache=False) as database:
-        assert database.run().info.events == len(_live.states)
+        assert database.run().info.events == len(live.states)
     assert sorted(p.name for p in tmp_path.iterdir()) == ["run.mcap"]
 
 
@@ -528,13 +551,8 @@ def test_a_gap_in_the_seqs_is_reported_and_moments_count_seqs(tmp_path):
         assert state.seq == 4 and state.status_of(1) is SUCCESS
 
 
-def write_spaced_recording(source: Path, target: Path) -> None:
-    """``source`` rewritten with every message re-encoded with spaces and reordered keys
-    (still valid JSON of the same layout), so that only the general decoding reads it."""
-    from btlog.record.reader import iter_messages, read_metadata
-
-    metadata = {k: v if isinstance(v, str) else orjson.dumps(v).decode()
-                for k, v in read_metadata(source).items()}
+def write_messages(target: Path, metadata: dict[str, str], messages) -> None:
+    """An MCAP file with btlog's channels holding ``(topic, log_time, bytes)`` messages."""
     with open(target, "wb") as file:
         writer = Writer(file)
         writer.start()
@@ -544,12 +562,38 @@ def write_spaced_recording(source: Path, target: Path) -> None:
                                                schema_text(schema))
             channels[topic] = writer.register_channel(topic, MessageEncoding.JSON, schema_id)
         writer.add_metadata(fmt.METADATA_NAME, metadata)
-        for topic, log_time, data in iter_messages(source):
-            message = orjson.loads(data)
-            spaced = {k: message[k] for k in reversed(list(message))}
-            text = json.dumps(spaced).encode()
-            writer.add_message(channels[topic], log_time, text, log_time)
+        for topic, log_time, data in messages:
+            writer.add_message(channels[topic], log_time, data, log_time)
         writer.finish()
+
+
+def write_spaced_recording(source: Path, target: Path) -> None:
+    """``source`` rewritten with every message re-encoded with spaces and reordered keys
+    (still valid JSON of the same layout), so that only the general decoding reads it."""
+    from btlog.record.reader import iter_messages, read_metadata
+
+    metadata = {k: v if isinstance(v, str) else orjson.dumps(v).decode()
+                for k, v in read_metadata(source).items()}
+    messages = []
+    for topic, log_time, data in iter_messages(source):
+        message = orjson.loads(data)
+        spaced = {k: message[k] for k in reversed(list(message))}
+        messages.append((topic, log_time, json.dumps(spaced).encode()))
+    write_messages(target, metadata, messages)
+
+
+def test_rows_that_break_the_format_are_a_replay_error(kitting, tmp_path):
+    from btlog.record.reader import iter_messages, read_metadata
+
+    path, _live = kitting
+    metadata = {k: v if isinstance(v, str) else orjson.dumps(v).decode()
+                for k, v in read_metadata(path).items()}
+    tree = next(m for m in iter_messages(path) if m[0] == fmt.TREE_TOPIC)
+    broken = tmp_path / "broken.mcap"
+    write_messages(broken, metadata, [tree, (fmt.EVENTS_TOPIC, 1, b'{"tick":1,"status":'
+                                                               b'[[0,0,1]],"writes":[]}')])
+    with pytest.raises(ReplayError, match=r"broken\.mcap.*do not follow the btlog format"):
+        open_runs(broken, cache=False)
 
 
 def test_unusual_payloads_are_decoded_by_the_general_path(kitting, tmp_path):

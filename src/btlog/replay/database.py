@@ -182,9 +182,9 @@ def _build_cache(path: str, cache: Path, snapshot_every: int) -> ingestion.Inges
                                 f"{CACHE_SUFFIX}")
     con = duckdb.connect()
     try:
+        con.execute("ATTACH $path AS cache_file", {"path": str(temporary)})
         ingestion.create_schema(con)
         report = ingestion.load_tables(con, path, snapshot_every=snapshot_every)
-        con.execute("ATTACH $path AS cache_file", {"path": str(temporary)})
         with ThreadPoolExecutor(max_workers=1, thread_name_prefix="btlog-cache") as pool:
             copying = pool.submit(_copy_tables, con.cursor())
             try:
@@ -245,21 +245,25 @@ class RunDatabase:
         return run
 
     def _attach_cached(self, path: str, catalog: str, cache_dir) -> None:
-        """Attach the recording's cache, (re)building it first unless it is current."""
+        """Attach the recording's cache, (re)building it first unless it is current. A
+        cache that could not be written beside the recording lives in the user's cache
+        folder instead; both places are looked at before anything is built."""
         key = _cache_key(path, self.snapshot_every)
-        cache = cache_location(path, cache_dir)
-        if self._attach_if_current(cache, catalog, key):
+        places = [cache_location(path, cache_dir)]
+        fallback = user_cache_dir() / _cache_name(Path(path))
+        if cache_dir is None and fallback != places[0]:
+            places.append(fallback)
+        if any(self._attach_if_current(place, catalog, key) for place in places):
             return
-        try:
-            self.ingested.append(_build_cache(path, cache, self.snapshot_every))
-        except (OSError, duckdb.IOException):
-            if cache_dir is not None or cache.parent == user_cache_dir():
-                raise
-            cache = user_cache_dir() / _cache_name(Path(path))
-            if self._attach_if_current(cache, catalog, key):
-                return
-            self.ingested.append(_build_cache(path, cache, self.snapshot_every))
-        self.con.execute(f"ATTACH $path AS {catalog} (READ_ONLY)", {"path": str(cache)})
+        for number, place in enumerate(places, 1):
+            try:
+                self.ingested.append(_build_cache(path, place, self.snapshot_every))
+            except (OSError, duckdb.IOException):
+                if number == len(places):
+                    raise
+                continue
+            self.con.execute(f"ATTACH $path AS {catalog} (READ_ONLY)", {"path": str(place)})
+            return
 
     def _attach_if_current(self, cache: Path, catalog: str, key: tuple) -> bool:
         """Attach ``cache`` if it exists and was built from this very recording."""

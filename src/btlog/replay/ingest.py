@@ -69,11 +69,13 @@ from btlog.status import Status
 from btlog.tree.model import Tree
 
 #: The layout of the read model; part of the cache key (bump when a table changes).
-INGEST_VERSION = "1"
-#: Events between two snapshots. The state at a moment folds at most this many events
-#: after its snapshot (~1.5 µs each here), so it bounds the latency of ``state_at``;
-#: see benchmarks/bench_replay.py for the measurement behind the choice.
-DEFAULT_SNAPSHOT_EVERY = 1024
+INGEST_VERSION = "2"
+#: Events between two snapshots. ``state_at`` reads one snapshot row and decodes and
+#: folds at most this many events (~2.5 µs each, all told), on top of a fixed ~2.5 ms
+#: (the query, the tree copy). Measured (``bench_replay.py --sweep``, 2M events): median
+#: 2.8-3.1 ms at K = 256 and 512, 4.0 at 1024, 4.7 at 2048, 6.3 at 4096, for the same
+#: build time; 512 keeps most of the gain with a quarter of the snapshot rows of 256.
+DEFAULT_SNAPSHOT_EVERY = 512
 #: Events fetched from DuckDB per query while building snapshots.
 FOLD_BATCH = 1 << 18
 
@@ -176,7 +178,7 @@ _TAIL = b"]}"
 #: ``[`` (a row starts) becomes a newline; ``"`` and ``]`` are deleted:
 #: ``[1,2,"IDLE","RUNNING"],`` → ``⏎1,2,IDLE,RUNNING,``
 _ROWS_TO_CSV = bytes.maketrans(b"[", b"\n")
-#: Bytes of status rows gathered before they are handed to DuckDB (while the walk goes on).
+#: Bytes of rows gathered before they are handed to the loaders (while the walk goes on).
 BATCH_BYTES = 48 << 20
 
 
@@ -293,6 +295,8 @@ class _McapScan:
             opcode, length = head(buffer, position)
             body = position + 9
             end = body + length
+            if end > size:
+                raise ValueError("a record overruns its chunk")
             position = end
             if opcode == _OP_MESSAGE and events is not None and starts(events, body):
                 start = body + _MESSAGE_HEAD
@@ -368,6 +372,7 @@ class _Lane:
         self.cursor.execute(f"USE {_identifier(catalog)}.{_identifier(schema)}")
         self.pool = ThreadPoolExecutor(max_workers=1, thread_name_prefix=f"btlog-{name}")
         self.pending: deque[Future] = deque()
+        self.closed = False
 
     def submit(self, job: Callable[..., None], *args: Any) -> None:
         """Queue ``job(cursor, *args)``, waiting while two are queued (bounds memory)."""
@@ -381,11 +386,14 @@ class _Lane:
             self.pending.popleft().result()
 
     def close(self) -> None:
-        """Cancel what has not started, wait for what has, release the cursor."""
+        """Cancel what has not started, wait for what has, release the cursor (once)."""
         for future in self.pending:
             future.cancel()
+        self.pending.clear()
         self.pool.shutdown(wait=True)
-        self.cursor.close()
+        if not self.closed:
+            self.closed = True
+            self.cursor.close()
 
 
 class _Loader:
@@ -562,19 +570,23 @@ def _insert_arrow(con, table_name: str, run_id: str, table: pa.Table) -> None:
         con.unregister(view)
 
 
-def _load_other_messages(con, run_id: str, collected: _Collected) -> None:
+def _load_other_messages(con, run_id: str, collected: _Collected, name: str) -> None:
     """The messages the fast path did not recognise, decoded one by one."""
     status: list[list] = []
     writes: list[list] = []
-    for payload in collected.other_events:
-        message = orjson.loads(payload)
-        status.extend(message.get("status", ()))
-        writes.extend(message.get("writes", ()))
-    _insert_status_rows(con, run_id, status)
-    _insert_write_rows(con, run_id, writes)
-    ticks = [row for payload in collected.other_ticks
-             for row in orjson.loads(payload).get("ticks", ())]
-    _insert_tick_rows(con, run_id, ticks)
+    try:
+        for payload in collected.other_events:
+            message = orjson.loads(payload)
+            status.extend(message.get("status", ()))
+            writes.extend(message.get("writes", ()))
+        ticks = [row for payload in collected.other_ticks
+                 for row in orjson.loads(payload).get("ticks", ())]
+        _insert_status_rows(con, run_id, status)
+        _insert_write_rows(con, run_id, writes)
+        _insert_tick_rows(con, run_id, ticks)
+    except (ValueError, TypeError, AttributeError, IndexError, duckdb.Error) as error:
+        raise RecordingError(f"{name}: a message does not follow the btlog format: "
+                             f"{type(error).__name__}: {error}") from None
 
 
 # -- the small tables ---------------------------------------------------------------------
@@ -939,13 +951,19 @@ def _load_rows(con, run_id: str, name: str) -> _Collected:
         loader = _Loader(con, run_id, Path(folder))
         try:
             collected = _McapScan(name, loader.submit).run()
+            loader.finish()
+        except (ValueError, TypeError, IndexError) as error:
+            loader.close()
+            if isinstance(error, RecordingError):
+                raise
+            raise RecordingError(f"{name}: rows that do not follow the btlog format: "
+                                 f"{type(error).__name__}: {error}") from None
         except BaseException:
             loader.close()
             raise
-        loader.finish()
     if collected.metadata is None:
         raise RecordingError(f"{name}: not a btlog recording: no {fmt.METADATA_NAME} metadata")
-    _load_other_messages(con, run_id, collected)
+    _load_other_messages(con, run_id, collected, name)
     return collected
 
 

@@ -21,7 +21,7 @@ ISO-8601            a wall time, e.g. ``2025-01-31T12:00:03.5+00:00``; measured 
 
 Parsing needs nothing but the text. ``resolve_moment`` then checks the moment against a
 run, given as a ``RunExtent`` (its duration, its event count, its last tick, its start
-wall time, and two look-ups answered by the read model) and returns a ``Resolved``
+wall time, and three look-ups answered by the read model) and returns a ``Resolved``
 moment. Every problem is a ``MomentError`` whose one-line message names the value and
 the reason, e.g. ``moment '99s' is after the end of the run (12.3 s)``.
 """
