@@ -170,17 +170,21 @@ class Precondition(DecoratorBehavior):
             self.children_running = False
         return result
 
-    def halt(self) -> None:
-        self.children_running = False
-        super().halt()
 
-
-class Delay(DecoratorBehavior):
-    """RUNNING for ``delay_msec`` (on the executor's clock), then tick the child."""
+class _Timed(DecoratorBehavior):
+    """A decorator with a deadline on the executor's clock, forgotten when halted."""
 
     def __init__(self, *args) -> None:
         super().__init__(*args)
         self.deadline: int | None = None
+
+    def halt(self) -> None:
+        self.deadline = None
+        super().halt()
+
+
+class Delay(_Timed):
+    """RUNNING for ``delay_msec`` (on the executor's clock), then tick the child."""
 
     def tick(self) -> Status:
         clock = self.runtime.clock
@@ -195,17 +199,9 @@ class Delay(DecoratorBehavior):
             self.reset_child()
         return result
 
-    def halt(self) -> None:
-        self.deadline = None
-        super().halt()
 
-
-class Timeout(DecoratorBehavior):
+class Timeout(_Timed):
     """Tick the child; if it is still running ``msec`` after the start, halt it and fail."""
-
-    def __init__(self, *args) -> None:
-        super().__init__(*args)
-        self.deadline: int | None = None
 
     def tick(self) -> Status:
         clock = self.runtime.clock
@@ -223,10 +219,6 @@ class Timeout(DecoratorBehavior):
             self.deadline = None
             self.reset_child()
         return result
-
-    def halt(self) -> None:
-        self.deadline = None
-        super().halt()
 
 
 class SubTree(DecoratorBehavior):

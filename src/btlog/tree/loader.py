@@ -294,13 +294,8 @@ class _Loader:
         for attribute, value in element.attrib.items():
             if attribute in ("name", "ID"):
                 continue
-            if attribute in RESERVED or attribute.startswith("_"):
-                if attribute in PRECONDITIONS or attribute in POSTCONDITIONS:
-                    _check_script(value, attribute, file, line)
-                attributes[attribute] = value
+            if _special_attribute(attribute, value, attributes, file, line):
                 continue
-            if not _allowed_port_name(attribute):
-                raise TreeError(f"{attribute!r} is not a valid port name", file, line)
             if strict and attribute not in node_type.ports:
                 raise TreeError(f"{node_type.id} has no port {attribute!r}", file, line)
             spec = node_type.ports.get(attribute)
@@ -342,13 +337,8 @@ class _Loader:
             if attribute == "_autoremap":
                 attributes["_autoremap"] = value
                 continue
-            if attribute.startswith("_"):
-                if attribute in PRECONDITIONS or attribute in POSTCONDITIONS:
-                    _check_script(value, attribute, file, line)
-                attributes[attribute] = value
+            if _special_attribute(attribute, value, attributes, file, line):
                 continue
-            if not _allowed_port_name(attribute):
-                raise TreeError(f"{attribute!r} is not a valid port name", file, line)
             if v3_plain and blackboard_key(value) is None:
                 value = "{" + value + "}"
             ports[attribute] = Port(value)
@@ -384,6 +374,20 @@ class _Loader:
             elif not autoremap:
                 raise TreeError(f"subtree {subtree_id!r}: port {port_name!r} is neither "
                                 "remapped nor given a default", file, line)
+
+
+def _special_attribute(attribute: str, value: str, attributes: dict[str, str], file: str,
+                       line: int) -> bool:
+    """Keep a reserved or ``_``-prefixed attribute (checking pre/post-condition scripts)
+    and return True; return False for a port, after checking that its name is valid."""
+    if attribute in RESERVED or attribute.startswith("_"):
+        if attribute in PRECONDITIONS or attribute in POSTCONDITIONS:
+            _check_script(value, attribute, file, line)
+        attributes[attribute] = value
+        return True
+    if not _allowed_port_name(attribute):
+        raise TreeError(f"{attribute!r} is not a valid port name", file, line)
+    return False
 
 
 _FORBIDDEN_PORT_CHARS = set(" \t\n\r<>&\"'/\\:*?|.")
