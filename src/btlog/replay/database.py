@@ -557,7 +557,7 @@ class Run:
             if int(node) in tree.nodes:
                 return [int(node)]
             raise ReplayError(f"run {self.run_id} has no node with uid {node}")
-        found = tree.find(str(node))
+        found = tree.lookup(str(node))
         if not found:
             raise ReplayError(f"no node of run {self.run_id} matches {node!r} "
                               "(a name, a type of nameless nodes, or a path)")

@@ -288,7 +288,7 @@ class StoredRun:
     def status(self, at: str, node: str) -> str:
         """The status name of ``node`` (name, type or path) at moment ``at``."""
         tree, state = self.state_at(at)
-        found = tree.find(node)
+        found = tree.lookup(node)
         if not found:
             raise LookupError(f"node {node!r} matches no node of the tree")
         if len(found) > 1:

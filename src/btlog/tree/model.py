@@ -191,9 +191,19 @@ class Tree:
         return max(self.nodes) + 1
 
     def find(self, key: str) -> list[Node]:
-        """Nodes matching an outcomes/expectations key: name, type (of nameless nodes) or path."""
-        exact = [n for n in self if n.path == key or n.name == key]
-        return exact or [n for n in self if not n.name and n.type == key]
+        """Nodes matching an outcomes/expectations key: its path, its name, or (for a
+        nameless node) its type. A key may match several nodes."""
+        return [n for n in self if n.path == key or n.name == key
+                or (not n.name and n.type == key)]
+
+    def lookup(self, key: str) -> list[Node]:
+        """The nodes a key names when one node is wanted: by path, else by name, else
+        nameless nodes by type (several when the key is ambiguous)."""
+        for matches in ([n for n in self if n.path == key], [n for n in self if n.name == key],
+                        [n for n in self if not n.name and n.type == key]):
+            if matches:
+                return matches
+        return []
 
     def describe(self) -> dict:
         """The tree as the JSON-ready ``/btlog/tree`` message."""
