@@ -70,11 +70,16 @@ def _open_runs(*paths: str):
     """Open recordings; on a terminal, say so while a first ingestion builds the cache."""
     from btlog.replay.database import open_runs
 
-    if not sys.stderr.isatty():
-        return open_runs(*paths)
-    with make_console(stderr=True).status("reading the recording (the first time builds "
-                                          "its cache)…"):
-        return open_runs(*paths)
+    if sys.stderr.isatty():
+        with make_console(stderr=True).status("reading the recording (the first time builds "
+                                              "its cache)…"):
+            database = open_runs(*paths)
+    else:
+        database = open_runs(*paths)
+    for info in database.runs:
+        for warning in info.warnings:
+            print(f"btlog: warning: {safe(warning)}", file=sys.stderr)
+    return database
 
 
 def _open_run(path: str):

@@ -132,6 +132,8 @@ class _Loader:
         first = self.documents[0]
         self.format = first.format or 3
         main = main_tree or first.main
+        if not self.definitions:
+            raise TreeError("no <BehaviorTree> is defined", file, first.root.sourceline)
         if main is None:
             if len(self.definitions) != 1:
                 raise TreeError("several <BehaviorTree> and no main_tree_to_execute", file,
