@@ -233,3 +233,15 @@ def test_replay_driven_by_a_script() -> None:
 ])
 def test_query_bad_input(args: list[str], words: list[str]) -> None:
     assert_bad_input(btlog(*args), *words)
+
+
+def test_truncated_recording_is_read_with_a_warning(tmp_path: Path) -> None:
+    out = tmp_path / "run.mcap"
+    assert btlog("run", str(KITTING), "--domain", "kitting", "--flush-interval", "0",
+                 "-o", str(out)).returncode == 0
+    cut = tmp_path / "cut.mcap"
+    cut.write_bytes(out.read_bytes()[: int(out.stat().st_size * 0.8)])
+    result = btlog("explain", str(cut), "--at", "end")
+    assert result.returncode == 0, result.stderr
+    assert "warning:" in result.stderr and "truncated" in result.stderr
+    assert "What are you doing?" in result.stdout
