@@ -60,8 +60,11 @@ def run(args: Namespace) -> int:
         print(result.path)
         return 0
     console.print(f"recording: {safe(result.path)}", highlight=False)
-    console.print(f"events: {result.events}  ticks: {result.ticks}  final status: "
-                  f"{result.final_status.name}", highlight=False)
+    final = result.final_status.name
+    if not result.final_status.completed:
+        final += f" (stopped after --max-ticks {args.max_ticks}; the tree was halted)"
+    console.print(f"events: {result.events}  ticks: {result.ticks}  final status: {final}",
+                  highlight=False)
     return 0
 
 
