@@ -245,3 +245,22 @@ def test_truncated_recording_is_read_with_a_warning(tmp_path: Path) -> None:
     assert result.returncode == 0, result.stderr
     assert "warning:" in result.stderr and "truncated" in result.stderr
     assert "What are you doing?" in result.stdout
+
+
+def test_show_html_escapes_names(tmp_path: Path) -> None:
+    tree = tmp_path / "evil.xml"
+    tree.write_text('<root BTCPP_format="4"><BehaviorTree ID="M">'
+                    '<Sequence name="&lt;script&gt;alert(1)&lt;/script&gt;">'
+                    '<Action ID="reach" name="&lt;b&gt;x&lt;/b&gt;"/></Sequence>'
+                    '</BehaviorTree></root>')
+    out = tmp_path / "evil.mcap"
+    assert btlog("run", str(tree), "-o", str(out)).returncode == 0
+    page = tmp_path / "moment.html"
+    result = btlog("show", str(out), "--at", "0.2s", "--html", str(page))
+    assert result.returncode == 0, result.stderr
+    text = page.read_text()
+    assert "<script>" not in text and "<b>x</b>" not in text
+    assert "&lt;script&gt;alert(1)&lt;/script&gt;" in text
+    assert "I &lt;b&gt;x&lt;/b&gt;." in text
+    plain = btlog("show", str(out), "--at", "0.2s", "--plain")
+    assert "<script>alert(1)</script>" in plain.stdout  # shown literally, never interpreted

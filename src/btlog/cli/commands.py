@@ -8,6 +8,7 @@ import json
 import sys
 from argparse import Namespace
 from collections import Counter
+from pathlib import Path
 
 from rich.progress import BarColumn, Progress, TextColumn, TimeElapsedColumn
 
@@ -137,8 +138,16 @@ def explain(args: Namespace) -> int:
 def show(args: Namespace) -> int:
     """``btlog show``: the tree with each node's status at a moment."""
     tree, state = _state(args.run, args.at)
-    console = make_console(args.plain)
     current = {n.uid for n in current_nodes(tree, state)}
+    if args.html:
+        from btlog.render.html import page
+
+        title = f"{Path(args.run).name} at {args.at}"
+        Path(args.html).write_text(page(title, tree, state, current, explain_all(tree, state)),
+                                   encoding="utf-8")
+        print(args.html)
+        return 0
+    console = make_console(args.plain)
     console.print(f"at {args.at}: seq {state.seq}, tick {state.tick}, {format_ns(state.t_ns)}",
                   highlight=False)
     for line in tree_lines(tree, state, current):

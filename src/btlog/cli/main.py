@@ -75,6 +75,7 @@ def build_parser() -> argparse.ArgumentParser:
     _add_moment(show, required=False)
     show.add_argument("--blackboard", action="store_true", help="also show the blackboard")
     show.add_argument("--plain", action="store_true", help="no colour")
+    show.add_argument("--html", metavar="FILE", help="write the moment as an HTML page")
 
     timeline = commands.add_parser("timeline", help="the events of a run")
     timeline.add_argument("run", metavar="RUN")
