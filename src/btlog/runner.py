@@ -113,8 +113,8 @@ class RunConfig:
         outcomes.failure_rate = self.failure_rate
         return outcomes
 
-    def to_metadata(self, tree: Tree, run_id: str) -> dict[str, str]:
-        """The ``btlog.run`` metadata record."""
+    def to_metadata(self, tree: Tree, run_id: str, outcomes: Outcomes) -> dict[str, str]:
+        """The ``btlog.run`` metadata record (``outcomes`` as loaded for this run)."""
         path = Path(self.tree)
         data = path.read_bytes()
         return {
@@ -126,7 +126,7 @@ class RunConfig:
             "tree_name": tree.name,
             "domain": self.domain,
             "seed": str(self.seed),
-            "outcomes": json.dumps(self._outcomes_source()),
+            "outcomes": json.dumps(outcomes.source),
             "outcomes_file": self.outcomes_file or "",
             "fail": json.dumps(self.fail),
             "failure_rate": repr(self.failure_rate),
@@ -137,11 +137,6 @@ class RunConfig:
             "btlog_version": __version__,
             "schema_version": SCHEMA_VERSION,
         }
-
-    def _outcomes_source(self) -> dict:
-        if self.outcomes is not None:
-            return self.outcomes
-        return self.load_outcomes().source
 
     @classmethod
     def from_metadata(cls, metadata: dict, tree: str | None = None) -> RunConfig:
@@ -256,7 +251,7 @@ def execute(config: RunConfig, output: str | os.PathLike | None = None,
     run_id = uuid.uuid4().hex[:12]
     path = Path(output) if output else default_output(config.tree, run_id)
     attachments = [(Path(f).name, Path(f).read_bytes()) for f in tree.files]
-    recorder = Recorder(path, tree, config.to_metadata(tree, run_id), attachments,
+    recorder = Recorder(path, tree, config.to_metadata(tree, run_id, outcomes), attachments,
                         flush_interval=config.flush_interval)
     executor.subscribe(recorder)
     live = LiveQuestions(executor, questions, recorder, on_answer) if questions else None
