@@ -36,8 +36,7 @@ def synthetic_tree(leaves: int = 200) -> Tree:
     """A Sequence root with ``leaves`` action children (uids 1..leaves+1)."""
     root = Node(uid=1, type="Sequence", name="root", kind=CONTROL, path="root")
     for uid in range(2, leaves + 2):
-        child = Node(uid=uid, type="Act", name=f"a{uid}", kind=ACTION, parent=root,
-                     path=f"a{uid}")
+        child = Node(uid=uid, type="Act", name=f"a{uid}", kind=ACTION, parent=root, path=f"a{uid}")
         root.children.append(child)
     return Tree(root)
 
@@ -54,8 +53,10 @@ def compressions() -> list[CompressionType]:
 
 def tick_patterns(per_tick: int, count: int = 8) -> list[list[tuple]]:
     """``count`` different ticks, each ``per_tick`` (uid, prev, status) changes."""
-    return [[(2 + (i * 7 + k) % 200, *CYCLE[(i + k) & 3]) for i in range(per_tick)]
-            for k in range(count)]
+    return [
+        [(2 + (i * 7 + k) % 200, *CYCLE[(i + k) & 3]) for i in range(per_tick)]
+        for k in range(count)
+    ]
 
 
 def feed(subscriber: Subscriber, events: int, per_tick: int) -> None:
@@ -85,17 +86,28 @@ def best_time(run, repeat: int) -> tuple[float, float]:
     return wall, cpu
 
 
-def measure(path: Path, compression: CompressionType, events: int, per_tick: int,
-            flush_interval: float, repeat: int, max_tick_events: int | None = None,
-            ) -> tuple[float, float, int]:
+def measure(
+    path: Path,
+    compression: CompressionType,
+    events: int,
+    per_tick: int,
+    flush_interval: float,
+    repeat: int,
+    max_tick_events: int | None = None,
+) -> tuple[float, float, int]:
     """(best wall seconds, best CPU seconds, file bytes) for recordings of ``events``
     synthetic events."""
     tree = synthetic_tree()
 
     def run() -> None:
-        recorder = Recorder(path, tree, {"domain": "benchmark"},
-                            flush_interval=flush_interval, compression=compression,
-                            max_tick_events=max_tick_events)
+        recorder = Recorder(
+            path,
+            tree,
+            {"domain": "benchmark"},
+            flush_interval=flush_interval,
+            compression=compression,
+            max_tick_events=max_tick_events,
+        )
         feed(recorder, events, per_tick)
         recorder.close()
 
@@ -108,29 +120,45 @@ def main() -> None:
     parser.add_argument("--per-tick", type=int, default=50)
     parser.add_argument("--flush-interval", type=float, default=1.0)
     parser.add_argument("--repeat", type=int, default=3, help="runs per figure; best is shown")
-    parser.add_argument("--max-tick-events", type=int, default=None,
-                        help="the Recorder's per-tick buffer bound (default: none)")
+    parser.add_argument(
+        "--max-tick-events",
+        type=int,
+        default=None,
+        help="the Recorder's per-tick buffer bound (default: none)",
+    )
     parser.add_argument("--smoke", action="store_true", help="a tiny run (10,000 events)")
     args = parser.parse_args()
     events = 10_000 if args.smoke else args.events
     repeat = 1 if args.smoke else args.repeat
-    print(f"{events:,} events in ticks of {args.per_tick}, flush interval "
-          f"{args.flush_interval} s, max_tick_events {args.max_tick_events}, "
-          f"best of {repeat}")
-    driver_wall, driver_cpu = best_time(lambda: feed(Subscriber(), events, args.per_tick),
-                                        repeat)
-    print(f"  driver alone (no-op subscriber): {events / driver_wall:,.0f} calls/s wall, "
-          f"{events / driver_cpu:,.0f} calls/s CPU")
+    print(
+        f"{events:,} events in ticks of {args.per_tick}, flush interval "
+        f"{args.flush_interval} s, max_tick_events {args.max_tick_events}, "
+        f"best of {repeat}"
+    )
+    driver_wall, driver_cpu = best_time(lambda: feed(Subscriber(), events, args.per_tick), repeat)
+    print(
+        f"  driver alone (no-op subscriber): {events / driver_wall:,.0f} calls/s wall, "
+        f"{events / driver_cpu:,.0f} calls/s CPU"
+    )
     print("  compression   events/s wall   events/s CPU   recorder-only CPU   MB     B/event")
     with tempfile.TemporaryDirectory() as folder:
         for compression in compressions():
             path = Path(folder) / f"bench-{compression.name.lower()}.mcap"
-            wall, cpu, size = measure(path, compression, events, args.per_tick,
-                                      args.flush_interval, repeat, args.max_tick_events)
+            wall, cpu, size = measure(
+                path,
+                compression,
+                events,
+                args.per_tick,
+                args.flush_interval,
+                repeat,
+                args.max_tick_events,
+            )
             own = cpu - driver_cpu
-            print(f"  {compression.name:<11} {events / wall:>13,.0f}   {events / cpu:>12,.0f}   "
-                  f"{events / own if own > 0 else float('inf'):>17,.0f}   "
-                  f"{size / 1e6:6.2f}   {size / events:7.2f}")
+            print(
+                f"  {compression.name:<11} {events / wall:>13,.0f}   {events / cpu:>12,.0f}   "
+                f"{events / own if own > 0 else float('inf'):>17,.0f}   "
+                f"{size / 1e6:6.2f}   {size / events:7.2f}"
+            )
             os.remove(path)
 
 

@@ -78,18 +78,23 @@ WORKLOAD = """<root BTCPP_format="4" main_tree_to_execute="Main">
     </Sequence>
   </BehaviorTree>
 </root>"""
-OUTCOMES = {"default": {"status": "SUCCESS", "ticks": 1},
-            "nodes": {"part visible": ["FAILURE", "SUCCESS"],
-                      "grasp part": [{"status": "FAILURE", "ticks": 2}, "SUCCESS"],
-                      "move to tray": {"status": "SUCCESS", "ticks": 3},
-                      "part ok": ["SUCCESS", "SUCCESS", "FAILURE"]}}
+OUTCOMES = {
+    "default": {"status": "SUCCESS", "ticks": 1},
+    "nodes": {
+        "part visible": ["FAILURE", "SUCCESS"],
+        "grasp part": [{"status": "FAILURE", "ticks": 2}, "SUCCESS"],
+        "move to tray": {"status": "SUCCESS", "ticks": 3},
+        "part ok": ["SUCCESS", "SUCCESS", "FAILURE"],
+    },
+}
 
 
 def workload_cycle() -> tuple[object, list, list[TickRecord]]:
     """(tree, events, ticks) of one run of the workload tree, root start to completion."""
     tree = load_tree_text(WORKLOAD)
-    executor = Executor(tree, leaf_factory=scripted_leaf_factory(
-        tree, Outcomes.from_mapping(OUTCOMES)))
+    executor = Executor(
+        tree, leaf_factory=scripted_leaf_factory(tree, Outcomes.from_mapping(OUTCOMES))
+    )
     executor.root_board.entries["cycle"] = 0
     log = EventLog()
     executor.subscribe(log)
@@ -106,8 +111,11 @@ def write_recording(path: Path, events: int) -> tuple[int, int]:
     span = ticks[-1].end_ns + 100_000_000
     written, repetition, last_tick = 0, 0, 0
     while written < events:
-        base_seq, base_t, base_tick = repetition * len(cycle), repetition * span, \
-            repetition * len(ticks)
+        base_seq, base_t, base_tick = (
+            repetition * len(cycle),
+            repetition * span,
+            repetition * len(ticks),
+        )
         position = 0
         for record in ticks:
             tick = record.tick
@@ -118,12 +126,23 @@ def write_recording(path: Path, events: int) -> tuple[int, int]:
                     on_status(seq + base_seq, t + base_t, tick + base_tick, uid, prev, status)
                 elif not isinstance(event, TreeMutation):
                     seq, t, _tick, scope, key, value, kind, writer = event
-                    on_write(seq + base_seq, t + base_t, tick + base_tick, scope, key, value,
-                             kind, writer)
+                    on_write(
+                        seq + base_seq,
+                        t + base_t,
+                        tick + base_tick,
+                        scope,
+                        key,
+                        value,
+                        kind,
+                        writer,
+                    )
                 position += 1
             last_tick = tick + base_tick
-            on_tick(TickRecord(last_tick, record.start_ns + base_t, record.end_ns + base_t,
-                               record.root_status))
+            on_tick(
+                TickRecord(
+                    last_tick, record.start_ns + base_t, record.end_ns + base_t, record.root_status
+                )
+            )
         written += len(cycle)
         repetition += 1
     recorder.close()
@@ -160,16 +179,19 @@ def parquet_read(path: Path, folder: Path, repeat: int) -> tuple[float, int]:
         target = folder / f"{table}.parquet"
         con.execute(f"COPY {table} TO '{target}' (FORMAT parquet)")
         files.append((table, target))
-    (rows,) = con.execute("SELECT (SELECT count(*) FROM transitions) + "
-                          "(SELECT count(*) FROM blackboard) + "
-                          "(SELECT count(*) FROM ticks)").fetchall()[0]
+    (rows,) = con.execute(
+        "SELECT (SELECT count(*) FROM transitions) + "
+        "(SELECT count(*) FROM blackboard) + "
+        "(SELECT count(*) FROM ticks)"
+    ).fetchall()[0]
     con.close()
 
     def load() -> None:
         fresh = duckdb.connect()
         for table, target in files:
-            fresh.execute(f"CREATE TABLE {table} AS SELECT * FROM read_parquet($path)",
-                          {"path": str(target)})
+            fresh.execute(
+                f"CREATE TABLE {table} AS SELECT * FROM read_parquet($path)", {"path": str(target)}
+            )
         fresh.close()
 
     seconds, _ = best(load, repeat)
@@ -215,30 +237,39 @@ def main() -> None:
     parser.add_argument("--repeat", type=int, default=3, help="runs per timing; best shown")
     parser.add_argument("--moments", type=int, default=200)
     parser.add_argument("--snapshot-every", type=int, default=ingest.DEFAULT_SNAPSHOT_EVERY)
-    parser.add_argument("--sweep", action="store_true",
-                        help="also measure K = 256 … 4096 (snapshot interval)")
+    parser.add_argument(
+        "--sweep", action="store_true", help="also measure K = 256 … 4096 (snapshot interval)"
+    )
     args = parser.parse_args()
     events = 200_000 if args.smoke else args.events
     repeat = 1 if args.smoke else args.repeat
-    print(f"machine: {os.cpu_count()} CPUs, load average "
-          f"{', '.join(f'{x:.2f}' for x in os.getloadavg())}; duckdb {duckdb.__version__}")
+    print(
+        f"machine: {os.cpu_count()} CPUs, load average "
+        f"{', '.join(f'{x:.2f}' for x in os.getloadavg())}; duckdb {duckdb.__version__}"
+    )
     with tempfile.TemporaryDirectory(prefix="bench-replay-") as name:
         folder = Path(name)
         path = folder / "bench.mcap"
         start = time.perf_counter()
         written, ticks = write_recording(path, events)
-        print(f"recording: {written:,} events, {ticks:,} ticks, "
-              f"{path.stat().st_size / 1e6:.1f} MB, written in "
-              f"{time.perf_counter() - start:.1f} s")
+        print(
+            f"recording: {written:,} events, {ticks:,} ticks, "
+            f"{path.stat().st_size / 1e6:.1f} MB, written in "
+            f"{time.perf_counter() - start:.1f} s"
+        )
 
         seconds, report = best(lambda: ingest_in_memory(path), repeat)
-        print(f"ingestion, tables in memory (best of {repeat}): {seconds:.2f} s = "
-              f"{report.events / seconds:,.0f} events/s  ({report.transitions:,} transitions, "
-              f"{report.writes:,} writes, {report.ticks:,} ticks)")
+        print(
+            f"ingestion, tables in memory (best of {repeat}): {seconds:.2f} s = "
+            f"{report.events / seconds:,.0f} events/s  ({report.transitions:,} transitions, "
+            f"{report.writes:,} writes, {report.ticks:,} ticks)"
+        )
         parquet_seconds, rows = parquet_read(path, folder, repeat)
-        print(f"DuckDB reading the same {rows:,} rows from Parquet: {parquet_seconds:.2f} s = "
-              f"{rows / parquet_seconds:,.0f} rows/s; ingestion takes "
-              f"{seconds / parquet_seconds:.1f}x as long")
+        print(
+            f"DuckDB reading the same {rows:,} rows from Parquet: {parquet_seconds:.2f} s = "
+            f"{rows / parquet_seconds:,.0f} rows/s; ingestion takes "
+            f"{seconds / parquet_seconds:.1f}x as long"
+        )
 
         cache = folder / "cache"
         start = time.perf_counter()
@@ -247,17 +278,18 @@ def main() -> None:
         total = time.perf_counter() - start
         rest = total - built.ingest_seconds - built.snapshot_seconds
         size = sum(f.stat().st_size for f in cache.iterdir()) / 1e6
-        print(f"open_runs, first open (cache built): {total:.2f} s = tables "
-              f"{built.ingest_seconds:.2f} s + snapshots {built.snapshot_seconds:.2f} s "
-              f"({built.snapshots:,} snapshots, K = {args.snapshot_every}; the tables are "
-              f"written to the cache meanwhile) + the rest {rest:.2f} s; cache {size:.0f} MB")
+        print(
+            f"open_runs, first open (cache built): {total:.2f} s = tables "
+            f"{built.ingest_seconds:.2f} s + snapshots {built.snapshot_seconds:.2f} s "
+            f"({built.snapshots:,} snapshots, K = {args.snapshot_every}; the tables are "
+            f"written to the cache meanwhile) + the rest {rest:.2f} s; cache {size:.0f} MB"
+        )
         start = time.perf_counter()
         with open_runs(path, snapshot_every=args.snapshot_every, cache_dir=cache) as database:
             assert not database.ingested
         reopen = (time.perf_counter() - start) * 1000
         print(f"open_runs, second open (cache reused): {reopen:.1f} ms")
-        print(f"state at a moment, {args.moments} random moments each, "
-              f"K = {args.snapshot_every}:")
+        print(f"state at a moment, {args.moments} random moments each, K = {args.snapshot_every}:")
         early, late = state_figures(path, cache, args.moments, args.snapshot_every)
         print(f"    late / early: {late / early:.2f}")
         if args.sweep:
@@ -265,8 +297,10 @@ def main() -> None:
                 sweep_cache = folder / f"cache-{every}"
                 with open_runs(path, snapshot_every=every, cache_dir=sweep_cache) as database:
                     built = database.ingested[0]
-                print(f"  K = {every}: snapshots {built.snapshot_seconds:.2f} s, "
-                      f"{built.snapshots:,} rows")
+                print(
+                    f"  K = {every}: snapshots {built.snapshot_seconds:.2f} s, "
+                    f"{built.snapshots:,} rows"
+                )
                 state_figures(path, sweep_cache, args.moments, every)
 
 

@@ -58,13 +58,18 @@ def tree_xml() -> str:
     """The BT.CPP v4 XML of the 50-node tree (unique names; BT.CPP accepts it as is)."""
     fallbacks = []
     for f in range(FALLBACKS):
-        leaves = "".join(f'<AlwaysFailure name="fail_{f}_{k}"/>'
-                         for k in range(FAILURES_PER_FALLBACK))
-        fallbacks.append(f'<Fallback name="fallback_{f}">{leaves}'
-                         f'<AlwaysSuccess name="ok_{f}"/></Fallback>')
-    return ('<root BTCPP_format="4" main_tree_to_execute="Main">'
-            '<BehaviorTree ID="Main"><Sequence name="root">'
-            + "".join(fallbacks) + "</Sequence></BehaviorTree></root>")
+        leaves = "".join(
+            f'<AlwaysFailure name="fail_{f}_{k}"/>' for k in range(FAILURES_PER_FALLBACK)
+        )
+        fallbacks.append(
+            f'<Fallback name="fallback_{f}">{leaves}<AlwaysSuccess name="ok_{f}"/></Fallback>'
+        )
+    return (
+        '<root BTCPP_format="4" main_tree_to_execute="Main">'
+        '<BehaviorTree ID="Main"><Sequence name="root">'
+        + "".join(fallbacks)
+        + "</Sequence></BehaviorTree></root>"
+    )
 
 
 def make_btlog_tree() -> Executor:
@@ -84,11 +89,13 @@ def make_py_trees_tree() -> Any:
 
     fallbacks = []
     for f in range(FALLBACKS):
-        children = [py_trees.behaviours.Failure(name=f"fail_{f}_{k}")
-                    for k in range(FAILURES_PER_FALLBACK)]
+        children = [
+            py_trees.behaviours.Failure(name=f"fail_{f}_{k}") for k in range(FAILURES_PER_FALLBACK)
+        ]
         children.append(py_trees.behaviours.Success(name=f"ok_{f}"))
-        fallbacks.append(py_trees.composites.Selector(name=f"fallback_{f}", memory=False,
-                                                      children=children))
+        fallbacks.append(
+            py_trees.composites.Selector(name=f"fallback_{f}", memory=False, children=children)
+        )
     root = py_trees.composites.Sequence(name="root", memory=False, children=fallbacks)
     return py_trees.trees.BehaviourTree(root)
 
@@ -108,6 +115,7 @@ def time_ticks(tick_fn: Callable[[], Any], seconds: float, warmup: float = 0.1) 
     """Call ``tick_fn`` repeatedly for about ``seconds`` (after a warm-up of ``warmup`` of
     that time) and return the rate in calls per second. Calls are made in batches, so
     the clock is read rarely; garbage is collected before timing starts."""
+
     def batches(duration: float) -> tuple[int, float]:
         count, batch = 0, 1
         start = time.perf_counter()
@@ -154,15 +162,17 @@ def profile_btlog(seconds: float, top: int = 18) -> str:
     out = io.StringIO()
     stats = pstats.Stats(profiler, stream=out)
     stats.sort_stats("tottime").print_stats(top)
-    return f"cProfile of {ticks} btlog ticks (times are inflated by the profiler):\n" + \
-        out.getvalue()
+    return (
+        f"cProfile of {ticks} btlog ticks (times are inflated by the profiler):\n" + out.getvalue()
+    )
 
 
 def main(argv: list[str] | None = None) -> int:
     """Run the measurements and print them."""
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    parser.add_argument("--seconds", type=float, default=3.0,
-                        help="ticking time per measurement (default 3)")
+    parser.add_argument(
+        "--seconds", type=float, default=3.0, help="ticking time per measurement (default 3)"
+    )
     parser.add_argument("--smoke", action="store_true", help="0.2 s per measurement")
     parser.add_argument("--profile", action="store_true", help="also profile btlog's tick")
     args = parser.parse_args(argv)
@@ -174,8 +184,10 @@ def main(argv: list[str] | None = None) -> int:
     check_results(executor, py_tree, btcpp)
 
     nodes = len(executor.tree)
-    print(f"tree: Sequence of {FALLBACKS} Fallbacks x ({FAILURES_PER_FALLBACK} AlwaysFailure + "
-          f"1 AlwaysSuccess) = {nodes} nodes; {seconds:g} s per measurement")
+    print(
+        f"tree: Sequence of {FALLBACKS} Fallbacks x ({FAILURES_PER_FALLBACK} AlwaysFailure + "
+        f"1 AlwaysSuccess) = {nodes} nodes; {seconds:g} s per measurement"
+    )
     rates: dict[str, float] = {}
     rates["btlog"] = time_ticks(executor.tick, seconds)
     with tempfile.TemporaryDirectory() as folder:
@@ -192,17 +204,25 @@ def main(argv: list[str] | None = None) -> int:
 
     width = max(len(name) for name in rates)
     for name, rate in rates.items():
-        print(f"  {name:<{width}}  {rate:>11,.0f} ticks/s  {1e6 / rate:8.2f} µs/tick  "
-              f"{rate * nodes / 1e6:6.2f} M node-ticks/s")
+        print(
+            f"  {name:<{width}}  {rate:>11,.0f} ticks/s  {1e6 / rate:8.2f} µs/tick  "
+            f"{rate * nodes / 1e6:6.2f} M node-ticks/s"
+        )
     ratio = rates["btlog"] / rates["py_trees"]
-    print(f"btlog / py_trees: {ratio:.2f}x  (target >= {TARGET_RATIO:g}x: "
-          f"{'met' if ratio >= TARGET_RATIO else 'NOT met'})")
-    print(f"btlog / py_trees BehaviourTree.tick(): "
-          f"{rates['btlog'] / rates['py_trees BehaviourTree.tick()']:.2f}x")
+    print(
+        f"btlog / py_trees: {ratio:.2f}x  (target >= {TARGET_RATIO:g}x: "
+        f"{'met' if ratio >= TARGET_RATIO else 'NOT met'})"
+    )
+    print(
+        f"btlog / py_trees BehaviourTree.tick(): "
+        f"{rates['btlog'] / rates['py_trees BehaviourTree.tick()']:.2f}x"
+    )
     recording_ratio = rates["btlog + full recording"] / rates["py_trees"]
-    print(f"btlog with full recording / py_trees: {recording_ratio:.2f}x  (target >= 3x: "
-          f"{'met' if recording_ratio >= 3 else 'NOT met'}; {events_per_tick:.0f} events/tick, "
-          f"{rates['btlog + full recording'] * events_per_tick:,.0f} events/s recorded)")
+    print(
+        f"btlog with full recording / py_trees: {recording_ratio:.2f}x  (target >= 3x: "
+        f"{'met' if recording_ratio >= 3 else 'NOT met'}; {events_per_tick:.0f} events/tick, "
+        f"{rates['btlog + full recording'] * events_per_tick:,.0f} events/s recorded)"
+    )
     if btcpp is not None:
         print(f"btlog / BT.CPP: {rates['btlog'] / rates['BT.CPP (behaviortreepy)']:.3f}x")
     else:

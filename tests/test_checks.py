@@ -36,10 +36,16 @@ GOOD = {
     "final_status": "SUCCESS",
     "answers": [
         {"at": "tick:1", "ask": "What are you doing?", "answer": "I move to see chuck."},
-        {"at": "2.5s", "ask": "Why are you doing this?",
-         "answer": "I move to see chuck in order to go insert large gear."},
-        {"at": "seq:5", "ask": "What is your subgoal?",
-         "answer": "My subgoal is to go insert large gear."},
+        {
+            "at": "2.5s",
+            "ask": "Why are you doing this?",
+            "answer": "I move to see chuck in order to go insert large gear.",
+        },
+        {
+            "at": "seq:5",
+            "ask": "What is your subgoal?",
+            "answer": "My subgoal is to go insert large gear.",
+        },
     ],
     "statuses": [
         {"at": "tick:1", "node": "move to see chuck", "status": "RUNNING"},
@@ -56,16 +62,23 @@ def _env() -> dict[str, str]:
 
 def cli(*args: str, cwd: Path | None = None) -> subprocess.CompletedProcess:
     """Run the real command line in a subprocess."""
-    return subprocess.run([sys.executable, "-m", "btlog.cli.main", *map(str, args)],
-                          capture_output=True, text=True, env=_env(), cwd=cwd, timeout=120)
+    return subprocess.run(
+        [sys.executable, "-m", "btlog.cli.main", *map(str, args)],
+        capture_output=True,
+        text=True,
+        env=_env(),
+        cwd=cwd,
+        timeout=120,
+    )
 
 
 @pytest.fixture(scope="module")
 def kitting_run(tmp_path_factory) -> Path:
     """A stored kitting run (seed 1)."""
     folder = tmp_path_factory.mktemp("kitting")
-    result = execute(RunConfig(tree=str(KITTING), domain="kitting", seed=1),
-                     folder / "kitting-1.mcap")
+    result = execute(
+        RunConfig(tree=str(KITTING), domain="kitting", seed=1), folder / "kitting-1.mcap"
+    )
     assert result.final_status.name == "SUCCESS"
     return result.path
 
@@ -92,7 +105,10 @@ def test_rerun_of_a_stored_kitting_run_passes(kitting_run):
     assert report.ok, report.render()
     assert report.divergence.identical and not report.tree_changed
     assert [s.subgoal for s in report.divergence.subgoals] == [
-        "go insert large gear", "go pick screw", "go place screw"]
+        "go insert large gear",
+        "go pick screw",
+        "go place screw",
+    ]
     assert report.recorded_status == report.rerun_status == "SUCCESS"
 
 
@@ -104,7 +120,9 @@ def test_rerun_with_swapped_actions_fails_and_names_them(kitting_run, swapped_tr
     found = diverging[0]
     assert found.edit_distance == 2
     assert {found.moves[0].action, *found.moves[0].past} == {
-        "scan scene for collision avoidance", "attach large gear to scene"}
+        "scan scene for collision avoidance",
+        "attach large gear to scene",
+    }
     failed = [r for r in report.results if not r.ok]
     assert [r.what for r in failed] == ['actions of subgoal "go insert large gear"']
     text = report.render()
@@ -114,9 +132,15 @@ def test_rerun_with_swapped_actions_fails_and_names_them(kitting_run, swapped_tr
 
 
 def test_rerun_replays_live_questions(tmp_path):
-    result = execute(RunConfig(tree=str(KITTING), domain="kitting", seed=1,
-                               questions=["tick:100=Can you detect chuck?"]),
-                     tmp_path / "asked.mcap")
+    result = execute(
+        RunConfig(
+            tree=str(KITTING),
+            domain="kitting",
+            seed=1,
+            questions=["tick:100=Can you detect chuck?"],
+        ),
+        tmp_path / "asked.mcap",
+    )
     assert rerun(result.path).ok
 
 
@@ -153,12 +177,17 @@ def test_expectations_pass(kitting_run):
 
 
 def test_expectations_fail_with_expected_and_actual(kitting_run):
-    wrong = {**GOOD, "final_status": "FAILURE",
-             "statuses": [{"at": "tick:1", "node": "move to see chuck", "status": "SUCCESS"}]}
+    wrong = {
+        **GOOD,
+        "final_status": "FAILURE",
+        "statuses": [{"at": "tick:1", "node": "move to see chuck", "status": "SUCCESS"}],
+    }
     results = check_run(kitting_run, wrong)
     failed = [r for r in results if not r.ok]
-    assert [(r.expected, r.actual) for r in failed] == [("FAILURE", "SUCCESS"),
-                                                        ("SUCCESS", "RUNNING")]
+    assert [(r.expected, r.actual) for r in failed] == [
+        ("FAILURE", "SUCCESS"),
+        ("SUCCESS", "RUNNING"),
+    ]
     assert "expected: FAILURE" in failed[0].report()
 
 
@@ -182,16 +211,24 @@ def test_check_expect_command_exit_codes(kitting_run, tmp_path):
     assert data["runs"][0]["rerun"]["divergence"]["identical"]
 
 
-@pytest.mark.parametrize(("content", "message"), [
-    ("answers:\n  - at: tick:1\n    ask: What are you doing?\n", "answers[0]: 'answer' missing"),
-    ("answers: [{at: 'tick:1', ask: Dance for me, answer: x}]",
-     "answers[0]: unknown question 'Dance for me'"),
-    ("statuses: [{at: tick:1, node: x, status: GREAT}]", "statuses[0]: status 'GREAT'"),
-    ("final_status: [1, 2", "not valid YAML"),
-    ("colour: blue", "unknown key 'colour'"),
-    ("statuses: [{at: tick:99999, node: detect chuck, status: IDLE}]", "statuses[0]:"),
-    ("statuses: [{at: tick:1, node: retreat arm, status: IDLE}]", "matches 6 nodes"),
-])
+@pytest.mark.parametrize(
+    ("content", "message"),
+    [
+        (
+            "answers:\n  - at: tick:1\n    ask: What are you doing?\n",
+            "answers[0]: 'answer' missing",
+        ),
+        (
+            "answers: [{at: 'tick:1', ask: Dance for me, answer: x}]",
+            "answers[0]: unknown question 'Dance for me'",
+        ),
+        ("statuses: [{at: tick:1, node: x, status: GREAT}]", "statuses[0]: status 'GREAT'"),
+        ("final_status: [1, 2", "not valid YAML"),
+        ("colour: blue", "unknown key 'colour'"),
+        ("statuses: [{at: tick:99999, node: detect chuck, status: IDLE}]", "statuses[0]:"),
+        ("statuses: [{at: tick:1, node: retreat arm, status: IDLE}]", "matches 6 nodes"),
+    ],
+)
 def test_bad_expectation_files_exit_2_with_one_line(kitting_run, tmp_path, content, message):
     path = tmp_path / "bad.yaml"
     path.write_text(content, encoding="utf-8")
@@ -216,27 +253,40 @@ def test_load_expectations_names_the_file_and_entry(tmp_path):
 
 
 def test_record_expectations_fills_in_actual_values(kitting_run):
-    skeleton = {"answers": [{"at": a["at"], "ask": a["ask"]} for a in GOOD["answers"]],
-                "statuses": [{**s, "status": "FAILURE"} for s in GOOD["statuses"]]}
+    skeleton = {
+        "answers": [{"at": a["at"], "ask": a["ask"]} for a in GOOD["answers"]],
+        "statuses": [{**s, "status": "FAILURE"} for s in GOOD["statuses"]],
+    }
     assert record_expectations(kitting_run, skeleton) == GOOD
 
 
 # -- the pytest plugin -------------------------------------------------------------------
 def _plugin_args() -> list[str]:
     """``-p btlog.testing.plugin`` unless the installed entry point loads it already."""
-    installed = any(ep.name == "btlog"
-                    for ep in importlib.metadata.entry_points(group="pytest11"))
+    installed = any(ep.name == "btlog" for ep in importlib.metadata.entry_points(group="pytest11"))
     return [] if installed else ["-p", "btlog.testing.plugin"]
 
 
 def _pytest(folder: Path, *args: str) -> subprocess.CompletedProcess:
-    command = [sys.executable, "-m", "pytest", *_plugin_args(), "-p", "no:cacheprovider",
-               "-p", "no:hypothesispytest", "-q", "-rf", *args]
-    return subprocess.run(command, capture_output=True, text=True, env=_env(), cwd=folder,
-                          timeout=120)
+    command = [
+        sys.executable,
+        "-m",
+        "pytest",
+        *_plugin_args(),
+        "-p",
+        "no:cacheprovider",
+        "-p",
+        "no:hypothesispytest",
+        "-q",
+        "-rf",
+        *args,
+    ]
+    return subprocess.run(
+        command, capture_output=True, text=True, env=_env(), cwd=folder, timeout=120
+    )
 
 
-FIXTURE_TESTS = '''
+FIXTURE_TESTS = """
 def test_fixtures(btlog_run, btlog_expect):
     run = btlog_run("kit.mcap")
     assert run.final_status == "SUCCESS"
@@ -245,7 +295,7 @@ def test_fixtures(btlog_run, btlog_expect):
     tree, state = run.state_at("end")
     assert state.seq > 0
     btlog_expect("kit.mcap", {"final_status": "SUCCESS"}, rerun=True)
-'''
+"""
 
 
 def test_plugin_collects_checks_and_re_records(kitting_run, tmp_path):
@@ -254,15 +304,16 @@ def test_plugin_collects_checks_and_re_records(kitting_run, tmp_path):
     (suite / "pytest.ini").write_text("[pytest]\n", encoding="utf-8")
     (suite / "kit.mcap").write_bytes(kitting_run.read_bytes())
     (suite / "test_runs.py").write_text(FIXTURE_TESTS, encoding="utf-8")
-    wrong = {**GOOD, "answers": [{**GOOD["answers"][0], "answer": "I dance."}],
-             "rerun": True}
+    wrong = {**GOOD, "answers": [{**GOOD["answers"][0], "answer": "I dance."}], "rerun": True}
     expect = _write(suite / "kit.expect.yaml", wrong)
 
     failing = _pytest(suite)
     assert failing.returncode == 1, failing.stdout + failing.stderr
     assert "FAILED kit.expect.yaml::answers[0]" in failing.stdout
-    assert "expected: I dance." in failing.stdout and "actual:   I move to see chuck." in \
-        failing.stdout
+    assert (
+        "expected: I dance." in failing.stdout
+        and "actual:   I move to see chuck." in failing.stdout
+    )
     assert "1 failed, 6 passed" in failing.stdout  # 1 + 1 + 3 + 1 rerun + 1 fixture test
 
     updated = _pytest(suite, "--btlog-update")

@@ -22,8 +22,15 @@ def btlog(*args: str, cwd: Path = ROOT, timeout: float = 120) -> subprocess.Comp
     """Run ``btlog ARGS`` and capture its output."""
     env = {**os.environ, "PYTHONPATH": str(ROOT / "src"), "NO_COLOR": "1"}
     env.pop("BTLOG_DEBUG", None)
-    return subprocess.run([sys.executable, "-m", "btlog.cli.main", *args], cwd=cwd, env=env,
-                          capture_output=True, text=True, timeout=timeout, check=False)
+    return subprocess.run(
+        [sys.executable, "-m", "btlog.cli.main", *args],
+        cwd=cwd,
+        env=env,
+        capture_output=True,
+        text=True,
+        timeout=timeout,
+        check=False,
+    )
 
 
 def assert_bad_input(result: subprocess.CompletedProcess, *words: str) -> None:
@@ -38,8 +45,18 @@ def assert_bad_input(result: subprocess.CompletedProcess, *words: str) -> None:
 
 def test_run_records_and_answers_live(tmp_path: Path) -> None:
     out = tmp_path / "k.mcap"
-    result = btlog("run", str(KITTING), "--domain", "kitting", "--fail", "look at chuck",
-                   "--ask", "30s=What went wrong?", "-o", str(out))
+    result = btlog(
+        "run",
+        str(KITTING),
+        "--domain",
+        "kitting",
+        "--fail",
+        "look at chuck",
+        "--ask",
+        "30s=What went wrong?",
+        "-o",
+        str(out),
+    )
     assert result.returncode == 0, result.stderr
     assert "I am retrying for attempt 1 to go insert large gear." in result.stdout
     assert "final status: SUCCESS" in result.stdout
@@ -54,8 +71,20 @@ def test_seeded_runs_are_identical(tmp_path: Path) -> None:
     events = []
     for name in ("a", "b"):
         out = tmp_path / f"{name}.mcap"
-        result = btlog("run", str(KITTING), "--domain", "kitting", "--failure-rate", "0.2",
-                       "--seed", "7", "--max-ticks", "3000", "-o", str(out))
+        result = btlog(
+            "run",
+            str(KITTING),
+            "--domain",
+            "kitting",
+            "--failure-rate",
+            "0.2",
+            "--seed",
+            "7",
+            "--max-ticks",
+            "3000",
+            "-o",
+            str(out),
+        )
         assert result.returncode == 0, result.stderr
         events.append(open_recording(out).events)
     assert events[0] == events[1]
@@ -71,25 +100,46 @@ def test_validate(tmp_path: Path) -> None:
     assert "v3 format" in btlog("validate", str(paper)).stdout
 
 
-@pytest.mark.parametrize(("xml", "words"), [
-    ("<root><BehaviorTree ID='M'><Sequence>", ["malformed XML", ":1"]),
-    ("<root BTCPP_format='4'><BehaviorTree ID='M'><Mystery><AlwaysSuccess/></Mystery>"
-     "</BehaviorTree></root>", ["unknown node type 'Mystery' with children"]),
-    ("<root BTCPP_format='4'><BehaviorTree ID='M'><Inverter><AlwaysSuccess/><AlwaysSuccess/>"
-     "</Inverter></BehaviorTree></root>", ["Inverter must have 1 children, found 2"]),
-    ("<root BTCPP_format='4'><BehaviorTree ID='M'><SubTree ID='Nope'/></BehaviorTree></root>",
-     ["subtree 'Nope' is not defined"]),
-    ("<root BTCPP_format='4' main_tree_to_execute='A'><BehaviorTree ID='A'><SubTree ID='B'/>"
-     "</BehaviorTree><BehaviorTree ID='B'><SubTree ID='A'/></BehaviorTree></root>",
-     ["subtree cycle: A -> B -> A"]),
-    ("<root BTCPP_format='4' main_tree_to_execute='X'><BehaviorTree ID='A'><AlwaysSuccess/>"
-     "</BehaviorTree></root>", ["main tree 'X' is not defined"]),
-    ("<root BTCPP_format='4'><BehaviorTree ID='M'><RetryUntilSuccessful num_attempts='many'>"
-     "<AlwaysSuccess/></RetryUntilSuccessful></BehaviorTree></root>", ["bad value 'many'"]),
-    ('<?xml version="1.0"?><!DOCTYPE r [<!ENTITY a "aaaaaaaaaa"><!ENTITY b "&a;&a;&a;&a;">]>'
-     "<root><BehaviorTree ID='M'><AlwaysSuccess name='&b;'/></BehaviorTree></root>",
-     ["DOCTYPE"]),
-])
+@pytest.mark.parametrize(
+    ("xml", "words"),
+    [
+        ("<root><BehaviorTree ID='M'><Sequence>", ["malformed XML", ":1"]),
+        (
+            "<root BTCPP_format='4'><BehaviorTree ID='M'><Mystery><AlwaysSuccess/></Mystery>"
+            "</BehaviorTree></root>",
+            ["unknown node type 'Mystery' with children"],
+        ),
+        (
+            "<root BTCPP_format='4'><BehaviorTree ID='M'><Inverter><AlwaysSuccess/><AlwaysSuccess/>"
+            "</Inverter></BehaviorTree></root>",
+            ["Inverter must have 1 children, found 2"],
+        ),
+        (
+            "<root BTCPP_format='4'><BehaviorTree ID='M'><SubTree ID='Nope'/></BehaviorTree></root>",
+            ["subtree 'Nope' is not defined"],
+        ),
+        (
+            "<root BTCPP_format='4' main_tree_to_execute='A'><BehaviorTree ID='A'><SubTree ID='B'/>"
+            "</BehaviorTree><BehaviorTree ID='B'><SubTree ID='A'/></BehaviorTree></root>",
+            ["subtree cycle: A -> B -> A"],
+        ),
+        (
+            "<root BTCPP_format='4' main_tree_to_execute='X'><BehaviorTree ID='A'><AlwaysSuccess/>"
+            "</BehaviorTree></root>",
+            ["main tree 'X' is not defined"],
+        ),
+        (
+            "<root BTCPP_format='4'><BehaviorTree ID='M'><RetryUntilSuccessful num_attempts='many'>"
+            "<AlwaysSuccess/></RetryUntilSuccessful></BehaviorTree></root>",
+            ["bad value 'many'"],
+        ),
+        (
+            '<?xml version="1.0"?><!DOCTYPE r [<!ENTITY a "aaaaaaaaaa"><!ENTITY b "&a;&a;&a;&a;">]>'
+            "<root><BehaviorTree ID='M'><AlwaysSuccess name='&b;'/></BehaviorTree></root>",
+            ["DOCTYPE"],
+        ),
+    ],
+)
 def test_bad_trees(tmp_path: Path, xml: str, words: list[str]) -> None:
     tree = tmp_path / "bad.xml"
     tree.write_text(xml)
@@ -97,18 +147,20 @@ def test_bad_trees(tmp_path: Path, xml: str, words: list[str]) -> None:
     assert_bad_input(btlog("run", str(tree), "-o", str(tmp_path / "x.mcap")), str(tree))
 
 
-@pytest.mark.parametrize(("content", "words"), [
-    ("nodes: [1, 2]", ["nodes must be a mapping"]),
-    ("nodes:\n  'look at chuck': MAYBE", ["status must be SUCCESS or FAILURE"]),
-    ("nodes:\n  'no such node': FAILURE", ["matches no node"]),
-    ("default: {duration: -1}", ["duration must be"]),
-    ("nodes: {a: [", ["not valid YAML/JSON"]),
-])
+@pytest.mark.parametrize(
+    ("content", "words"),
+    [
+        ("nodes: [1, 2]", ["nodes must be a mapping"]),
+        ("nodes:\n  'look at chuck': MAYBE", ["status must be SUCCESS or FAILURE"]),
+        ("nodes:\n  'no such node': FAILURE", ["matches no node"]),
+        ("default: {duration: -1}", ["duration must be"]),
+        ("nodes: {a: [", ["not valid YAML/JSON"]),
+    ],
+)
 def test_bad_outcomes(tmp_path: Path, content: str, words: list[str]) -> None:
     outcomes = tmp_path / "outcomes.yaml"
     outcomes.write_text(content)
-    result = btlog("run", str(KITTING), "--outcomes", str(outcomes), "-o",
-                   str(tmp_path / "x.mcap"))
+    result = btlog("run", str(KITTING), "--outcomes", str(outcomes), "-o", str(tmp_path / "x.mcap"))
     assert_bad_input(result, *words)
 
 
@@ -116,24 +168,22 @@ def test_bad_run_options(tmp_path: Path) -> None:
     out = str(tmp_path / "x.mcap")
     assert_bad_input(btlog("run", str(KITTING), "--domain", "mars", "-o", out), "mars")
     assert_bad_input(btlog("run", str(KITTING), "--ask", "soon=What?", "-o", out), "soon")
-    assert_bad_input(btlog("run", str(KITTING), "--ask", "1s=Sing a song", "-o", out),
-                     "I don't understand")
-    assert_bad_input(btlog("run", str(KITTING), "--failure-rate", "2", "-o", out),
-                     "failure-rate")
+    assert_bad_input(
+        btlog("run", str(KITTING), "--ask", "1s=Sing a song", "-o", out), "I don't understand"
+    )
+    assert_bad_input(btlog("run", str(KITTING), "--failure-rate", "2", "-o", out), "failure-rate")
 
 
 @pytest.mark.parametrize("content", [b"", b"hello, I am not a recording\n", b"\x89MCAP0\r\n"])
 def test_bad_recordings(tmp_path: Path, content: bytes) -> None:
     broken = tmp_path / "broken.mcap"
     broken.write_bytes(content)
-    assert_bad_input(btlog("recover", str(broken), "-o", str(tmp_path / "fixed.mcap")),
-                     str(broken))
+    assert_bad_input(btlog("recover", str(broken), "-o", str(tmp_path / "fixed.mcap")), str(broken))
 
 
 def test_missing_files_are_bad_input(tmp_path: Path) -> None:
     assert_bad_input(btlog("validate", str(tmp_path / "none.xml")), "cannot read")
-    assert_bad_input(btlog("recover", str(tmp_path / "none.mcap"), "-o",
-                           str(tmp_path / "f.mcap")))
+    assert_bad_input(btlog("recover", str(tmp_path / "none.mcap"), "-o", str(tmp_path / "f.mcap")))
 
 
 def test_kill_9_then_recover(tmp_path: Path) -> None:
@@ -141,10 +191,28 @@ def test_kill_9_then_recover(tmp_path: Path) -> None:
     out = tmp_path / "killed.mcap"
     env = {**os.environ, "PYTHONPATH": str(ROOT / "src")}
     process = subprocess.Popen(
-        [sys.executable, "-m", "btlog.cli.main", "run", str(KITTING), "--domain", "kitting",
-         "--realtime", "--tick-period", "0.005", "--flush-interval", "0.05", "--quiet",
-         "-o", str(out)], cwd=ROOT, env=env, stdout=subprocess.DEVNULL,
-        stderr=subprocess.DEVNULL)
+        [
+            sys.executable,
+            "-m",
+            "btlog.cli.main",
+            "run",
+            str(KITTING),
+            "--domain",
+            "kitting",
+            "--realtime",
+            "--tick-period",
+            "0.005",
+            "--flush-interval",
+            "0.05",
+            "--quiet",
+            "-o",
+            str(out),
+        ],
+        cwd=ROOT,
+        env=env,
+        stdout=subprocess.DEVNULL,
+        stderr=subprocess.DEVNULL,
+    )
     deadline = time.monotonic() + 30
     while time.monotonic() < deadline and (not out.exists() or out.stat().st_size < 4000):
         time.sleep(0.05)
@@ -164,8 +232,19 @@ def test_kill_9_then_recover(tmp_path: Path) -> None:
 
 
 def test_help_for_every_command() -> None:
-    for command in ("run", "ask", "explain", "show", "timeline", "replay", "sql", "diff",
-                    "check", "recover", "validate"):
+    for command in (
+        "run",
+        "ask",
+        "explain",
+        "show",
+        "timeline",
+        "replay",
+        "sql",
+        "diff",
+        "check",
+        "recover",
+        "validate",
+    ):
         result = btlog(command, "--help")
         assert result.returncode == 0
         assert f"usage: btlog {command}" in result.stdout
@@ -177,13 +256,22 @@ FAILS = str(RECORDINGS / "kitting-look-at-chuck-fails.mcap")
 def test_ask_and_explain_post_hoc() -> None:
     result = btlog("ask", FAILS, "--at", "30s", "What went wrong?")
     assert result.returncode == 0, result.stderr
-    assert result.stdout.strip() == ("I am retrying for attempt 1 to go insert large gear. "
-                                     "I could not insert large gear because look at chuck "
-                                     "failed.")
+    assert result.stdout.strip() == (
+        "I am retrying for attempt 1 to go insert large gear. "
+        "I could not insert large gear because look at chuck "
+        "failed."
+    )
     explained = btlog("explain", FAILS, "--at", "30s", "--json")
     data = __import__("json").loads(explained.stdout)
     assert [a["intent"] for a in data["answers"]] == [
-        "doing", "why", "subgoal", "goal", "how_subgoal", "how_goal", "wrong"]
+        "doing",
+        "why",
+        "subgoal",
+        "goal",
+        "how_subgoal",
+        "how_goal",
+        "wrong",
+    ]
     assert data["answers"][3]["answer"] == "My goal is to build a gearbox kit."
     assert data["moment"]["t_ns"] <= 30_000_000_000
 
@@ -206,39 +294,59 @@ def test_show_timeline_sql() -> None:
     timeline = btlog("timeline", FAILS, "--node", "look at chuck", "--status", "FAILURE")
     assert timeline.returncode == 0, timeline.stderr
     assert timeline.stdout.count("RUNNING -> FAILURE") == 1
-    csv = btlog("sql", FAILS, str(RECORDINGS / "taxi-optimal.mcap"),
-                "SELECT count(DISTINCT run_id) AS runs FROM transitions", "--format", "csv")
+    csv = btlog(
+        "sql",
+        FAILS,
+        str(RECORDINGS / "taxi-optimal.mcap"),
+        "SELECT count(DISTINCT run_id) AS runs FROM transitions",
+        "--format",
+        "csv",
+    )
     assert csv.stdout.split() == ["runs", "2"]
 
 
 def test_replay_driven_by_a_script() -> None:
     script = "n 5\nt 10\np 2\ng 30s\nask What went wrong?\nbb\nq\n"
     env = {**os.environ, "PYTHONPATH": str(ROOT / "src"), "NO_COLOR": "1"}
-    result = subprocess.run([sys.executable, "-m", "btlog.cli.main", "replay", FAILS,
-                             "--plain", "--script", "-"], input=script, cwd=ROOT, env=env,
-                            capture_output=True, text=True, timeout=120, check=False)
+    result = subprocess.run(
+        [sys.executable, "-m", "btlog.cli.main", "replay", FAILS, "--plain", "--script", "-"],
+        input=script,
+        cwd=ROOT,
+        env=env,
+        capture_output=True,
+        text=True,
+        timeout=120,
+        check=False,
+    )
     assert result.returncode == 0, result.stderr
     assert result.stdout.count("── event") == 6
     assert "I could not insert large gear because look at chuck failed." in result.stdout
     assert "[go insert large gear::2]" in result.stdout
 
 
-@pytest.mark.parametrize(("args", "words"), [
-    (["ask", FAILS, "--at", "99s", "What are you doing?"], ["after the end"]),
-    (["ask", FAILS, "--at", "soon", "What are you doing?"], ["unparseable moment"]),
-    (["ask", FAILS, "--at", "1s", "Sing a song"], ["I don't understand"]),
-    (["sql", FAILS, "SELEC 1"], ["SQL error"]),
-    (["show", "/no/such/file.mcap"], ["file.mcap"]),
-    (["timeline", FAILS, "--status", "DANCING"], ["DANCING"]),
-])
+@pytest.mark.parametrize(
+    ("args", "words"),
+    [
+        (["ask", FAILS, "--at", "99s", "What are you doing?"], ["after the end"]),
+        (["ask", FAILS, "--at", "soon", "What are you doing?"], ["unparseable moment"]),
+        (["ask", FAILS, "--at", "1s", "Sing a song"], ["I don't understand"]),
+        (["sql", FAILS, "SELEC 1"], ["SQL error"]),
+        (["show", "/no/such/file.mcap"], ["file.mcap"]),
+        (["timeline", FAILS, "--status", "DANCING"], ["DANCING"]),
+    ],
+)
 def test_query_bad_input(args: list[str], words: list[str]) -> None:
     assert_bad_input(btlog(*args), *words)
 
 
 def test_truncated_recording_is_read_with_a_warning(tmp_path: Path) -> None:
     out = tmp_path / "run.mcap"
-    assert btlog("run", str(KITTING), "--domain", "kitting", "--flush-interval", "0",
-                 "-o", str(out)).returncode == 0
+    assert (
+        btlog(
+            "run", str(KITTING), "--domain", "kitting", "--flush-interval", "0", "-o", str(out)
+        ).returncode
+        == 0
+    )
     cut = tmp_path / "cut.mcap"
     cut.write_bytes(out.read_bytes()[: int(out.stat().st_size * 0.8)])
     result = btlog("explain", str(cut), "--at", "end")
@@ -249,10 +357,12 @@ def test_truncated_recording_is_read_with_a_warning(tmp_path: Path) -> None:
 
 def test_show_html_escapes_names(tmp_path: Path) -> None:
     tree = tmp_path / "evil.xml"
-    tree.write_text('<root BTCPP_format="4"><BehaviorTree ID="M">'
-                    '<Sequence name="&lt;script&gt;alert(1)&lt;/script&gt;">'
-                    '<Action ID="reach" name="&lt;b&gt;x&lt;/b&gt;"/></Sequence>'
-                    '</BehaviorTree></root>')
+    tree.write_text(
+        '<root BTCPP_format="4"><BehaviorTree ID="M">'
+        '<Sequence name="&lt;script&gt;alert(1)&lt;/script&gt;">'
+        '<Action ID="reach" name="&lt;b&gt;x&lt;/b&gt;"/></Sequence>'
+        "</BehaviorTree></root>"
+    )
     out = tmp_path / "evil.mcap"
     assert btlog("run", str(tree), "-o", str(out)).returncode == 0
     page = tmp_path / "moment.html"

@@ -58,13 +58,27 @@ def test_btlog_matches_btcpp_transition_for_transition(oracle_results) -> None:
         ours = btlog_transitions(case)
         theirs = result["transitions"]
         if ours != theirs:
-            first = next((i for i, (a, b) in enumerate(zip(ours, theirs, strict=False)) if a != b),
-                         min(len(ours), len(theirs)))
-            mismatches.append((case.seed if hasattr(case, "seed") else "?", first,
-                               theirs[first:first + 3], ours[first:first + 3]))
-    print(f"differential: {compared} trees compared, {skipped} skipped (BT.CPP crashed or "
-          f"refused the tree)")
+            first = next(
+                (i for i, (a, b) in enumerate(zip(ours, theirs, strict=False)) if a != b),
+                min(len(ours), len(theirs)),
+            )
+            mismatches.append(
+                (
+                    case.seed if hasattr(case, "seed") else "?",
+                    first,
+                    theirs[first : first + 3],
+                    ours[first : first + 3],
+                )
+            )
+    print(
+        f"differential: {compared} trees compared, {skipped} skipped (BT.CPP crashed or "
+        f"refused the tree)"
+    )
     assert compared >= CASES * 0.9
-    assert not mismatches, "\n".join(
-        f"seed {seed}: first difference at transition {i}: BT.CPP {a} btlog {b}"
-        for seed, i, a, b in mismatches[:10]) + f"\n({len(mismatches)} mismatching trees)"
+    assert not mismatches, (
+        "\n".join(
+            f"seed {seed}: first difference at transition {i}: BT.CPP {a} btlog {b}"
+            for seed, i, a, b in mismatches[:10]
+        )
+        + f"\n({len(mismatches)} mismatching trees)"
+    )

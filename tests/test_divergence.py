@@ -46,8 +46,7 @@ def taxi_runs(tmp_path_factory) -> dict[str, Path]:
     folder = tmp_path_factory.mktemp("taxi")
     runs = {}
     for label, tree in (("optimal", "taxi.xml"), ("human", "taxi-human.xml")):
-        result = execute(RunConfig(tree=str(TREES / tree), domain="taxi"),
-                         folder / f"{label}.mcap")
+        result = execute(RunConfig(tree=str(TREES / tree), domain="taxi"), folder / f"{label}.mcap")
         assert result.final_status.name == "SUCCESS"
         runs[label] = result.path
     return runs
@@ -62,10 +61,14 @@ def _check_taxi_divergence(divergence) -> None:
     pick, drop = divergence.subgoal(PICK), divergence.subgoal(DROP)
     assert (pick.edit_distance, len(pick.lcs)) == (2, 5)
     assert (drop.edit_distance, len(drop.lcs)) == (2, 5)
-    assert list(pick.lcs) == ["move right", "move right", "move up", "move up",
-                              "pick up passenger"]
-    assert list(drop.lcs) == ["move down", "move down", "move left", "move left",
-                              "drop off passenger"]
+    assert list(pick.lcs) == ["move right", "move right", "move up", "move up", "pick up passenger"]
+    assert list(drop.lcs) == [
+        "move down",
+        "move down",
+        "move left",
+        "move left",
+        "drop off passenger",
+    ]
     assert sorted(_descriptions(pick.only_a)) == ["move left", "move right"]
     assert sorted(_descriptions(drop.only_a)) == ["move left", "move right"]
     assert pick.only_b == [] and drop.only_b == []
@@ -77,9 +80,21 @@ def _check_taxi_divergence(divergence) -> None:
 def test_executed_actions_of_the_optimal_taxi_run(taxi_runs):
     actions = executed_actions(open_recording(taxi_runs["optimal"]))
     assert _descriptions(actions) == [
-        "move right", "move right", "move right", "move up", "move up", "move left",
-        "pick up passenger", "move right", "move down", "move down", "move left", "move left",
-        "move left", "drop off passenger"]
+        "move right",
+        "move right",
+        "move right",
+        "move up",
+        "move up",
+        "move left",
+        "pick up passenger",
+        "move right",
+        "move down",
+        "move down",
+        "move left",
+        "move left",
+        "move left",
+        "drop off passenger",
+    ]
     assert [a.subgoal for a in actions] == [PICK] * 7 + [DROP] * 7
     assert actions[0].parent == "navigate to passenger"
     assert actions[6].parent == PICK and actions[6].type == "pick up"
@@ -95,8 +110,9 @@ def test_nominal_sequence_of_a_tree_equals_its_recorded_run(taxi_runs):
 
 
 def test_taxi_optimal_run_against_the_human_expectation_tree(taxi_runs):
-    divergence = diverge(executed_actions(taxi_runs["optimal"]),
-                         nominal_actions(TREES / "taxi-human.xml"))
+    divergence = diverge(
+        executed_actions(taxi_runs["optimal"]), nominal_actions(TREES / "taxi-human.xml")
+    )
     _check_taxi_divergence(divergence)
 
 
@@ -124,7 +140,9 @@ def test_json_lists_divergent_actions_with_parents(taxi_runs):
     pick = data["subgoals"][0]
     assert (pick["subgoal"], pick["edit_distance"], pick["lcs_length"]) == (PICK, 2, 5)
     assert {(d["side"], d["action"], d["parent"]) for d in pick["divergent"]} == {
-        ("a", "move right", "navigate to passenger"), ("a", "move left", "navigate to passenger")}
+        ("a", "move right", "navigate to passenger"),
+        ("a", "move left", "navigate to passenger"),
+    }
     assert [row["op"] for row in pick["rows"]].count("equal") == 5
 
 
@@ -159,9 +177,15 @@ def test_names_from_trees_are_printed_safely():
 
 def test_inserted_nodes_are_known_to_executed_actions(tmp_path):
     """A live "Can you …?" inserts nodes; their activations appear with their subgoal."""
-    result = execute(RunConfig(tree=str(TREES / "kitting.xml"), domain="kitting", seed=1,
-                               questions=["tick:100=Can you detect chuck?"]),
-                     tmp_path / "asked.mcap")
+    result = execute(
+        RunConfig(
+            tree=str(TREES / "kitting.xml"),
+            domain="kitting",
+            seed=1,
+            questions=["tick:100=Can you detect chuck?"],
+        ),
+        tmp_path / "asked.mcap",
+    )
     recording = open_recording(result.path)
     actions = executed_actions(recording)
     inserted = [a for a in actions if a.uid not in recording.tree.nodes]
@@ -170,21 +194,32 @@ def test_inserted_nodes_are_known_to_executed_actions(tmp_path):
 
 
 def test_diff_command_plain_and_json(taxi_runs):
-    env = {**os.environ, "PYTHONPATH": os.pathsep.join([str(ROOT / "src"),
-                                                        os.environ.get("PYTHONPATH", "")])}
-    base = [sys.executable, "-m", "btlog.cli.main", "diff", str(taxi_runs["optimal"]),
-            str(TREES / "taxi-human.xml")]
-    plain = subprocess.run([*base, "--plain"], capture_output=True, text=True, env=env,
-                           timeout=60)
+    env = {
+        **os.environ,
+        "PYTHONPATH": os.pathsep.join([str(ROOT / "src"), os.environ.get("PYTHONPATH", "")]),
+    }
+    base = [
+        sys.executable,
+        "-m",
+        "btlog.cli.main",
+        "diff",
+        str(taxi_runs["optimal"]),
+        str(TREES / "taxi-human.xml"),
+    ]
+    plain = subprocess.run([*base, "--plain"], capture_output=True, text=True, env=env, timeout=60)
     assert plain.returncode == 0, plain.stderr
     assert f'subgoal "{DROP}": edit distance 2, LCS length 5' in plain.stdout
     assert "\x1b" not in plain.stdout
-    as_json = subprocess.run([*base, "--json"], capture_output=True, text=True, env=env,
-                             timeout=60)
+    as_json = subprocess.run([*base, "--json"], capture_output=True, text=True, env=env, timeout=60)
     assert as_json.returncode == 0, as_json.stderr
     data = json.loads(as_json.stdout)
     assert [s["edit_distance"] for s in data["subgoals"]] == [2, 2]
-    missing = subprocess.run([*base[:-2], "nope.mcap", str(TREES / "taxi.xml")],
-                             capture_output=True, text=True, env=env, timeout=60)
+    missing = subprocess.run(
+        [*base[:-2], "nope.mcap", str(TREES / "taxi.xml")],
+        capture_output=True,
+        text=True,
+        env=env,
+        timeout=60,
+    )
     assert missing.returncode == 2
     assert len(missing.stderr.strip().splitlines()) == 1 and "nope.mcap" in missing.stderr

@@ -28,21 +28,25 @@ def run(tree_file: str, domain: str, outcomes: Outcomes | None = None, seed: int
 
 def writes(log: EventLog, tree, key: str) -> list[tuple[str, object]]:
     """(writer description, value) of every write of ``key``."""
-    return [(tree.node(e.writer_uid).description, e.value) for e in log.events
-            if isinstance(e, BlackboardWrite) and e.key == key]
+    return [
+        (tree.node(e.writer_uid).description, e.value)
+        for e in log.events
+        if isinstance(e, BlackboardWrite) and e.key == key
+    ]
 
 
 def test_kitting_poses_flow_through_ports() -> None:
     tree, executor, status, log = run("kitting.xml", "kitting", seed=4)
     assert status is SUCCESS
-    (detector, pose), = writes(log, tree, "object pose")[:1]
+    ((detector, pose),) = writes(log, tree, "object pose")[:1]
     assert detector == "detect chuck"
-    (converter, insertion), = writes(log, tree, "insertion pose")
+    ((converter, insertion),) = writes(log, tree, "insertion pose")
     assert converter == "convert to insertion pose"
     assert insertion["x"] == round(pose["x"] - 0.05, 4)
     assert insertion["z"] == round(pose["z"] + 0.02, 4)
-    scope = next(e.scope for e in log.events if isinstance(e, BlackboardWrite)
-                 and e.key == "insertion pose")
+    scope = next(
+        e.scope for e in log.events if isinstance(e, BlackboardWrite) and e.key == "insertion pose"
+    )
     assert scope == "go insert large gear::2"
     assert executor.blackboards()[scope]["insertion pose"] == insertion
 
@@ -53,19 +57,19 @@ def test_kitting_detection_failing_three_times_asks_for_help() -> None:
     tree, _, status, log = run("kitting.xml", "kitting", outcomes)
     assert status is SUCCESS  # the subgoal's Fallback asks for help, the kit goes on
     assert not [w for w in writes(log, tree, "object pose") if w[0] == "detect chuck"]
-    asked = [e for e in log.transitions if tree.node(e.uid).type == "ask"
-             and e.status is SUCCESS]
+    asked = [e for e in log.transitions if tree.node(e.uid).type == "ask" and e.status is SUCCESS]
     assert len(asked) == 1
 
 
 def test_kitting_motion_without_a_pose_fails(tmp_path: Path) -> None:
     tree_file = tmp_path / "reach.xml"
-    tree_file.write_text('<root BTCPP_format="4"><BehaviorTree ID="M"><Sequence name="s">'
-                         '<Action ID="reach" name="reach nowhere" pose="{missing}"/>'
-                         '</Sequence></BehaviorTree></root>')
+    tree_file.write_text(
+        '<root BTCPP_format="4"><BehaviorTree ID="M"><Sequence name="s">'
+        '<Action ID="reach" name="reach nowhere" pose="{missing}"/>'
+        "</Sequence></BehaviorTree></root>"
+    )
     tree = load_tree(tree_file)
-    executor = Executor(tree, leaf_factory=make_domain("kitting").leaf_factory(tree,
-                                                                               Outcomes()))
+    executor = Executor(tree, leaf_factory=make_domain("kitting").leaf_factory(tree, Outcomes()))
     assert executor.run(max_ticks=100) is FAILURE
 
 

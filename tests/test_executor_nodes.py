@@ -74,8 +74,10 @@ def script(name: str, code: str) -> str:
 def xml(body: str, trees: str = "", fmt: str | None = "4") -> str:
     """A document whose main tree ``Main`` is ``body``; ``trees`` adds more BehaviorTrees."""
     version = f' BTCPP_format="{fmt}"' if fmt else ""
-    return (f'<root{version} main_tree_to_execute="Main">\n'
-            f'<BehaviorTree ID="Main">\n{body}\n</BehaviorTree>\n{trees}\n</root>')
+    return (
+        f'<root{version} main_tree_to_execute="Main">\n'
+        f'<BehaviorTree ID="Main">\n{body}\n</BehaviorTree>\n{trees}\n</root>'
+    )
 
 
 def condition_class(nodes: dict[str, list[dict]]) -> type[Condition]:
@@ -123,19 +125,22 @@ class Run:
 
     def writes(self) -> list[tuple[str, str, Any]]:
         """Every blackboard write as ``(scope, key, value)``."""
-        return [(e.scope, e.key, e.value) for e in self.log.events
-                if isinstance(e, BlackboardWrite)]
+        return [
+            (e.scope, e.key, e.value) for e in self.log.events if isinstance(e, BlackboardWrite)
+        ]
 
 
-def build(text: str, nodes: dict[str, list[dict]] | None = None,
-          period: float = 0.1) -> tuple[Tree, Executor, EventLog]:
+def build(
+    text: str, nodes: dict[str, list[dict]] | None = None, period: float = 0.1
+) -> tuple[Tree, Executor, EventLog]:
     """Load ``text`` and build an executor with scripted leaves and an event log."""
     nodes = nodes or {}
     registry = scripted_registry(nodes)
     tree = load_tree_text(text, registry)
     outcomes = Outcomes.from_mapping({"default": DEFAULT_OUTCOME, "nodes": nodes})
-    executor = Executor(tree, registry, clock=SimClock(period),
-                        leaf_factory=scripted_leaf_factory(tree, outcomes))
+    executor = Executor(
+        tree, registry, clock=SimClock(period), leaf_factory=scripted_leaf_factory(tree, outcomes)
+    )
     log = EventLog()
     executor.subscribe(log)
     return tree, executor, log
@@ -146,15 +151,21 @@ def collect(tree: Tree, executor: Executor, log: EventLog) -> Run:
     result = Run(tree, executor, log)
     for event in log.transitions:
         name = tree.node(event.uid).name
-        result.ticks.setdefault(event.tick, []).append(
-            (name, event.prev.name, event.status.name))
+        result.ticks.setdefault(event.tick, []).append((name, event.prev.name, event.status.name))
     result.roots = [record.root_status.name for record in log.ticks]
     return result
 
 
-def run(body: str, nodes: dict[str, list[dict]] | None = None, *, trees: str = "",
-        max_ticks: int = 10, period: float = 0.1, fmt: str | None = "4",
-        oracle: bool = True) -> Run:
+def run(
+    body: str,
+    nodes: dict[str, list[dict]] | None = None,
+    *,
+    trees: str = "",
+    max_ticks: int = 10,
+    period: float = 0.1,
+    fmt: str | None = "4",
+    oracle: bool = True,
+) -> Run:
     """Run ``Executor.run(max_ticks)`` on the tree (halted if still running at the end)."""
     text = xml(body, trees, fmt)
     tree, executor, log = build(text, nodes, period)
@@ -173,8 +184,13 @@ def crosscheck(text: str, nodes: dict, max_ticks: int, result: Run) -> None:
         from oracle.runner import have_behaviortreepy, run_oracle  # type: ignore[no-redef]
     if not have_behaviortreepy():
         pytest.skip("behaviortreepy missing")
-    outcome = run_oracle({"xml": text, "max_ticks": max_ticks,
-                          "outcomes": {"default": DEFAULT_OUTCOME, "nodes": nodes}})
+    outcome = run_oracle(
+        {
+            "xml": text,
+            "max_ticks": max_ticks,
+            "outcomes": {"default": DEFAULT_OUTCOME, "nodes": nodes},
+        }
+    )
     assert outcome is not None, "BT.CPP crashed"
     assert outcome["error"] is None, outcome["error"]
     assert outcome["transitions"] == result.flat
@@ -201,42 +217,79 @@ def test_sequence_resumes_at_the_running_child() -> None:
     assert r.roots == ["RUNNING", "SUCCESS"]
     assert r.ticks == {
         1: [("s", "IDLE", "RUNNING"), ("a", "IDLE", "SUCCESS"), ("b", "IDLE", "RUNNING")],
-        2: [("b", "RUNNING", "SUCCESS"), ("c", "IDLE", "SUCCESS"), ("a", "SUCCESS", "IDLE"),
-            ("b", "SUCCESS", "IDLE"), ("c", "SUCCESS", "IDLE"), ("s", "RUNNING", "SUCCESS"),
-            ("s", "SUCCESS", "IDLE")],
+        2: [
+            ("b", "RUNNING", "SUCCESS"),
+            ("c", "IDLE", "SUCCESS"),
+            ("a", "SUCCESS", "IDLE"),
+            ("b", "SUCCESS", "IDLE"),
+            ("c", "SUCCESS", "IDLE"),
+            ("s", "RUNNING", "SUCCESS"),
+            ("s", "SUCCESS", "IDLE"),
+        ],
     }
 
 
 def test_sequence_failure_resets_all_children_and_restarts() -> None:
     """A FAILURE resets every child (completed ones SUCCESS->IDLE) and the index: the Sequence,
     re-ticked by the Retry, starts again from its first child."""
-    r = run('<RetryUntilSuccessful name="r" num_attempts="2"><Sequence name="s">'
-            f'{act("a")}{act("b")}{act("c")}</Sequence></RetryUntilSuccessful>',
-            {"b": [ok(1)], "c": [fail(), ok()]})
+    r = run(
+        '<RetryUntilSuccessful name="r" num_attempts="2"><Sequence name="s">'
+        f"{act('a')}{act('b')}{act('c')}</Sequence></RetryUntilSuccessful>",
+        {"b": [ok(1)], "c": [fail(), ok()]},
+    )
     assert r.roots == ["RUNNING", "RUNNING", "SUCCESS"]
     assert r.ticks == {
-        1: [("r", "IDLE", "RUNNING"), ("s", "IDLE", "RUNNING"), ("a", "IDLE", "SUCCESS"),
-            ("b", "IDLE", "RUNNING")],
-        2: [("b", "RUNNING", "SUCCESS"), ("c", "IDLE", "FAILURE"), ("a", "SUCCESS", "IDLE"),
-            ("b", "SUCCESS", "IDLE"), ("c", "FAILURE", "IDLE"), ("s", "RUNNING", "FAILURE"),
-            ("s", "FAILURE", "IDLE"), ("s", "IDLE", "RUNNING"), ("a", "IDLE", "SUCCESS"),
-            ("b", "IDLE", "RUNNING")],
-        3: [("b", "RUNNING", "SUCCESS"), ("c", "IDLE", "SUCCESS"), ("a", "SUCCESS", "IDLE"),
-            ("b", "SUCCESS", "IDLE"), ("c", "SUCCESS", "IDLE"), ("s", "RUNNING", "SUCCESS"),
-            ("s", "SUCCESS", "IDLE"), ("r", "RUNNING", "SUCCESS"), ("r", "SUCCESS", "IDLE")],
+        1: [
+            ("r", "IDLE", "RUNNING"),
+            ("s", "IDLE", "RUNNING"),
+            ("a", "IDLE", "SUCCESS"),
+            ("b", "IDLE", "RUNNING"),
+        ],
+        2: [
+            ("b", "RUNNING", "SUCCESS"),
+            ("c", "IDLE", "FAILURE"),
+            ("a", "SUCCESS", "IDLE"),
+            ("b", "SUCCESS", "IDLE"),
+            ("c", "FAILURE", "IDLE"),
+            ("s", "RUNNING", "FAILURE"),
+            ("s", "FAILURE", "IDLE"),
+            ("s", "IDLE", "RUNNING"),
+            ("a", "IDLE", "SUCCESS"),
+            ("b", "IDLE", "RUNNING"),
+        ],
+        3: [
+            ("b", "RUNNING", "SUCCESS"),
+            ("c", "IDLE", "SUCCESS"),
+            ("a", "SUCCESS", "IDLE"),
+            ("b", "SUCCESS", "IDLE"),
+            ("c", "SUCCESS", "IDLE"),
+            ("s", "RUNNING", "SUCCESS"),
+            ("s", "SUCCESS", "IDLE"),
+            ("r", "RUNNING", "SUCCESS"),
+            ("r", "SUCCESS", "IDLE"),
+        ],
     }
 
 
-@pytest.mark.parametrize("control", ['Sequence name="n"', 'Fallback name="n"',
-                                     'Parallel name="n" success_count="2"',
-                                     'ParallelAll name="n"'])
+@pytest.mark.parametrize(
+    "control",
+    [
+        'Sequence name="n"',
+        'Fallback name="n"',
+        'Parallel name="n" success_count="2"',
+        'ParallelAll name="n"',
+    ],
+)
 def test_control_of_skipped_children_is_skipped_and_stays_running(control: str) -> None:
     """All children skipped: the node returns SKIPPED (never stored), so it stays RUNNING in
     the log (btcpp-semantics.md, root quirk) until the final halt resets it. (A Parallel
     with the default success_count=-1 succeeds instead: see the quirk test below.)"""
     tag = control.split()[0]
-    r = run(f'<{control}><AlwaysSuccess name="x" _skipIf="true"/>'
-            f'<AlwaysSuccess name="y" _skipIf="true"/></{tag}>', max_ticks=2)
+    r = run(
+        f'<{control}><AlwaysSuccess name="x" _skipIf="true"/>'
+        f'<AlwaysSuccess name="y" _skipIf="true"/></{tag}>',
+        max_ticks=2,
+    )
     assert r.roots == ["SKIPPED", "SKIPPED"]
     assert r.ticks == {
         1: [("n", "IDLE", "RUNNING")],
@@ -249,21 +302,34 @@ def test_sequence_with_some_skipped_children_succeeds() -> None:
     r = run(f'<Sequence name="s"><AlwaysFailure name="x" _skipIf="true"/>{act("a")}</Sequence>')
     assert r.roots == ["SUCCESS"]
     assert r.ticks == {
-        1: [("s", "IDLE", "RUNNING"), ("a", "IDLE", "SUCCESS"), ("a", "SUCCESS", "IDLE"),
-            ("s", "RUNNING", "SUCCESS"), ("s", "SUCCESS", "IDLE")],
+        1: [
+            ("s", "IDLE", "RUNNING"),
+            ("a", "IDLE", "SUCCESS"),
+            ("a", "SUCCESS", "IDLE"),
+            ("s", "RUNNING", "SUCCESS"),
+            ("s", "SUCCESS", "IDLE"),
+        ],
     }
 
 
 def test_nested_all_skipped_sequence_stays_running_until_its_parent_resets_it() -> None:
     """The inner Sequence set itself RUNNING, returned SKIPPED: it stays RUNNING until the outer
     Sequence resets its children (RUNNING->IDLE, no halt needed)."""
-    r = run('<Sequence name="top"><Sequence name="s"><AlwaysSuccess name="x" _skipIf="true"/>'
-            f'</Sequence>{act("a")}</Sequence>')
+    r = run(
+        '<Sequence name="top"><Sequence name="s"><AlwaysSuccess name="x" _skipIf="true"/>'
+        f"</Sequence>{act('a')}</Sequence>"
+    )
     assert r.roots == ["SUCCESS"]
     assert r.ticks == {
-        1: [("top", "IDLE", "RUNNING"), ("s", "IDLE", "RUNNING"), ("a", "IDLE", "SUCCESS"),
-            ("s", "RUNNING", "IDLE"), ("a", "SUCCESS", "IDLE"), ("top", "RUNNING", "SUCCESS"),
-            ("top", "SUCCESS", "IDLE")],
+        1: [
+            ("top", "IDLE", "RUNNING"),
+            ("s", "IDLE", "RUNNING"),
+            ("a", "IDLE", "SUCCESS"),
+            ("s", "RUNNING", "IDLE"),
+            ("a", "SUCCESS", "IDLE"),
+            ("top", "RUNNING", "SUCCESS"),
+            ("top", "SUCCESS", "IDLE"),
+        ],
     }
 
 
@@ -271,36 +337,68 @@ def test_sequence_with_memory_retries_the_failed_child_only() -> None:
     """SequenceWithMemory keeps its index on FAILURE: when re-ticked (by the Retry) it resumes at
     the failed child b; a is not run again. b's first attempt fails synchronously from IDLE, so
     the Retry signals a wake-up and the root is re-ticked within the same tick."""
-    r = run('<RetryUntilSuccessful name="r" num_attempts="3"><SequenceWithMemory name="m">'
-            f'{act("a")}{act("b")}{act("c")}</SequenceWithMemory></RetryUntilSuccessful>',
-            {"b": [fail(), ok(1)]})
+    r = run(
+        '<RetryUntilSuccessful name="r" num_attempts="3"><SequenceWithMemory name="m">'
+        f"{act('a')}{act('b')}{act('c')}</SequenceWithMemory></RetryUntilSuccessful>",
+        {"b": [fail(), ok(1)]},
+    )
     assert r.roots == ["RUNNING", "SUCCESS"]
     assert r.ticks == {
-        1: [("r", "IDLE", "RUNNING"), ("m", "IDLE", "RUNNING"), ("a", "IDLE", "SUCCESS"),
-            ("b", "IDLE", "FAILURE"), ("b", "FAILURE", "IDLE"), ("m", "RUNNING", "FAILURE"),
-            ("m", "FAILURE", "IDLE"), ("m", "IDLE", "RUNNING"), ("b", "IDLE", "RUNNING")],
-        2: [("b", "RUNNING", "SUCCESS"), ("c", "IDLE", "SUCCESS"), ("a", "SUCCESS", "IDLE"),
-            ("b", "SUCCESS", "IDLE"), ("c", "SUCCESS", "IDLE"), ("m", "RUNNING", "SUCCESS"),
-            ("m", "SUCCESS", "IDLE"), ("r", "RUNNING", "SUCCESS"), ("r", "SUCCESS", "IDLE")],
+        1: [
+            ("r", "IDLE", "RUNNING"),
+            ("m", "IDLE", "RUNNING"),
+            ("a", "IDLE", "SUCCESS"),
+            ("b", "IDLE", "FAILURE"),
+            ("b", "FAILURE", "IDLE"),
+            ("m", "RUNNING", "FAILURE"),
+            ("m", "FAILURE", "IDLE"),
+            ("m", "IDLE", "RUNNING"),
+            ("b", "IDLE", "RUNNING"),
+        ],
+        2: [
+            ("b", "RUNNING", "SUCCESS"),
+            ("c", "IDLE", "SUCCESS"),
+            ("a", "SUCCESS", "IDLE"),
+            ("b", "SUCCESS", "IDLE"),
+            ("c", "SUCCESS", "IDLE"),
+            ("m", "RUNNING", "SUCCESS"),
+            ("m", "SUCCESS", "IDLE"),
+            ("r", "RUNNING", "SUCCESS"),
+            ("r", "SUCCESS", "IDLE"),
+        ],
     }
-    assert [t for t in r.flat if t[1] == "a"] == [[1, "a", "IDLE", "SUCCESS"],
-                                                  [2, "a", "SUCCESS", "IDLE"]]
+    assert [t for t in r.flat if t[1] == "a"] == [
+        [1, "a", "IDLE", "SUCCESS"],
+        [2, "a", "SUCCESS", "IDLE"],
+    ]
 
 
 def test_sequence_with_memory_keeps_earlier_successes_in_the_log() -> None:
     """On FAILURE only children from the failed one on are reset: a stays SUCCESS in the log,
     even after the ReactiveFallback resets the SequenceWithMemory itself. (a succeeded from
     IDLE: a wake-up, so c is evaluated twice in the tick.)"""
-    r = run(f'<ReactiveFallback name="f">{cond("c")}<SequenceWithMemory name="m">'
-            f'{act("a")}{act("b")}{act("d")}</SequenceWithMemory></ReactiveFallback>',
-            {"c": [fail()], "b": [fail()]})
+    r = run(
+        f'<ReactiveFallback name="f">{cond("c")}<SequenceWithMemory name="m">'
+        f"{act('a')}{act('b')}{act('d')}</SequenceWithMemory></ReactiveFallback>",
+        {"c": [fail()], "b": [fail()]},
+    )
     assert r.roots == ["FAILURE"]
     assert r.ticks == {
-        1: [("f", "IDLE", "RUNNING"), ("c", "IDLE", "FAILURE"), ("m", "IDLE", "RUNNING"),
-            ("a", "IDLE", "SUCCESS"), ("c", "FAILURE", "IDLE"), ("c", "IDLE", "FAILURE"),
-            ("b", "IDLE", "FAILURE"), ("b", "FAILURE", "IDLE"), ("m", "RUNNING", "FAILURE"),
-            ("c", "FAILURE", "IDLE"), ("m", "FAILURE", "IDLE"), ("f", "RUNNING", "FAILURE"),
-            ("f", "FAILURE", "IDLE")],
+        1: [
+            ("f", "IDLE", "RUNNING"),
+            ("c", "IDLE", "FAILURE"),
+            ("m", "IDLE", "RUNNING"),
+            ("a", "IDLE", "SUCCESS"),
+            ("c", "FAILURE", "IDLE"),
+            ("c", "IDLE", "FAILURE"),
+            ("b", "IDLE", "FAILURE"),
+            ("b", "FAILURE", "IDLE"),
+            ("m", "RUNNING", "FAILURE"),
+            ("c", "FAILURE", "IDLE"),
+            ("m", "FAILURE", "IDLE"),
+            ("f", "RUNNING", "FAILURE"),
+            ("f", "FAILURE", "IDLE"),
+        ],
     }
     assert r.executor.statuses()[r.tree.find("a")[0].uid] is SUCCESS
 
@@ -309,75 +407,146 @@ def test_sequence_with_memory_wakes_up_after_a_success_from_idle() -> None:
     """A child succeeding from IDLE with more children to go makes SequenceWithMemory return
     RUNNING with a wake-up: the ReactiveSequence halts its condition, the root is re-ticked in
     the same tick and the condition is evaluated a second time (tick 1)."""
-    r = run(f'<ReactiveSequence name="r">{cond("c")}<SequenceWithMemory name="m">'
-            f'{act("a")}{act("b")}</SequenceWithMemory></ReactiveSequence>', {"b": [ok(1)]})
+    r = run(
+        f'<ReactiveSequence name="r">{cond("c")}<SequenceWithMemory name="m">'
+        f"{act('a')}{act('b')}</SequenceWithMemory></ReactiveSequence>",
+        {"b": [ok(1)]},
+    )
     assert r.roots == ["RUNNING", "SUCCESS"]
     assert r.ticks == {
-        1: [("r", "IDLE", "RUNNING"), ("c", "IDLE", "SUCCESS"), ("m", "IDLE", "RUNNING"),
-            ("a", "IDLE", "SUCCESS"), ("c", "SUCCESS", "IDLE"), ("c", "IDLE", "SUCCESS"),
-            ("b", "IDLE", "RUNNING"), ("c", "SUCCESS", "IDLE")],
-        2: [("c", "IDLE", "SUCCESS"), ("b", "RUNNING", "SUCCESS"), ("a", "SUCCESS", "IDLE"),
-            ("b", "SUCCESS", "IDLE"), ("m", "RUNNING", "SUCCESS"), ("c", "SUCCESS", "IDLE"),
-            ("m", "SUCCESS", "IDLE"), ("r", "RUNNING", "SUCCESS"), ("r", "SUCCESS", "IDLE")],
+        1: [
+            ("r", "IDLE", "RUNNING"),
+            ("c", "IDLE", "SUCCESS"),
+            ("m", "IDLE", "RUNNING"),
+            ("a", "IDLE", "SUCCESS"),
+            ("c", "SUCCESS", "IDLE"),
+            ("c", "IDLE", "SUCCESS"),
+            ("b", "IDLE", "RUNNING"),
+            ("c", "SUCCESS", "IDLE"),
+        ],
+        2: [
+            ("c", "IDLE", "SUCCESS"),
+            ("b", "RUNNING", "SUCCESS"),
+            ("a", "SUCCESS", "IDLE"),
+            ("b", "SUCCESS", "IDLE"),
+            ("m", "RUNNING", "SUCCESS"),
+            ("c", "SUCCESS", "IDLE"),
+            ("m", "SUCCESS", "IDLE"),
+            ("r", "RUNNING", "SUCCESS"),
+            ("r", "SUCCESS", "IDLE"),
+        ],
     }
 
 
 def test_reactive_sequence_reticks_and_resets_earlier_conditions_every_tick() -> None:
     """ReactiveSequence ticks from its first child every tick and halts every other child when one
     is RUNNING: c goes SUCCESS->IDLE each tick; when c fails, the running a is halted."""
-    r = run(f'<ReactiveSequence name="r">{cond("c")}{act("a")}</ReactiveSequence>',
-            {"c": [ok(), fail()], "a": [ok(3)]})
+    r = run(
+        f'<ReactiveSequence name="r">{cond("c")}{act("a")}</ReactiveSequence>',
+        {"c": [ok(), fail()], "a": [ok(3)]},
+    )
     assert r.roots == ["RUNNING", "FAILURE"]
     assert r.ticks == {
-        1: [("r", "IDLE", "RUNNING"), ("c", "IDLE", "SUCCESS"), ("a", "IDLE", "RUNNING"),
-            ("c", "SUCCESS", "IDLE")],
-        2: [("c", "IDLE", "FAILURE"), ("c", "FAILURE", "IDLE"), ("a", "RUNNING", "IDLE"),
-            ("r", "RUNNING", "FAILURE"), ("r", "FAILURE", "IDLE")],
+        1: [
+            ("r", "IDLE", "RUNNING"),
+            ("c", "IDLE", "SUCCESS"),
+            ("a", "IDLE", "RUNNING"),
+            ("c", "SUCCESS", "IDLE"),
+        ],
+        2: [
+            ("c", "IDLE", "FAILURE"),
+            ("c", "FAILURE", "IDLE"),
+            ("a", "RUNNING", "IDLE"),
+            ("r", "RUNNING", "FAILURE"),
+            ("r", "FAILURE", "IDLE"),
+        ],
     }
 
 
 def test_reactive_sequence_halts_a_later_running_child() -> None:
     """a completed synchronously (activation 1), then RUNNING again on its second activation:
     the later RUNNING b is halted (RUNNING->IDLE), and restarted once a completes."""
-    r = run(f'<ReactiveSequence name="r">{cond("c")}{act("a")}{act("b")}</ReactiveSequence>',
-            {"a": [ok(), ok(1)], "b": [ok(3)]}, max_ticks=4)
+    r = run(
+        f'<ReactiveSequence name="r">{cond("c")}{act("a")}{act("b")}</ReactiveSequence>',
+        {"a": [ok(), ok(1)], "b": [ok(3)]},
+        max_ticks=4,
+    )
     assert r.roots == ["RUNNING", "RUNNING", "RUNNING", "RUNNING"]
     assert r.ticks == {
-        1: [("r", "IDLE", "RUNNING"), ("c", "IDLE", "SUCCESS"), ("a", "IDLE", "SUCCESS"),
-            ("b", "IDLE", "RUNNING"), ("c", "SUCCESS", "IDLE"), ("a", "SUCCESS", "IDLE")],
-        2: [("c", "IDLE", "SUCCESS"), ("a", "IDLE", "RUNNING"), ("c", "SUCCESS", "IDLE"),
-            ("b", "RUNNING", "IDLE")],
-        3: [("c", "IDLE", "SUCCESS"), ("a", "RUNNING", "SUCCESS"), ("b", "IDLE", "RUNNING"),
-            ("c", "SUCCESS", "IDLE"), ("a", "SUCCESS", "IDLE")],
-        4: [("c", "IDLE", "SUCCESS"), ("a", "IDLE", "RUNNING"), ("c", "SUCCESS", "IDLE"),
-            ("b", "RUNNING", "IDLE"), ("a", "RUNNING", "IDLE"), ("r", "RUNNING", "IDLE")],
+        1: [
+            ("r", "IDLE", "RUNNING"),
+            ("c", "IDLE", "SUCCESS"),
+            ("a", "IDLE", "SUCCESS"),
+            ("b", "IDLE", "RUNNING"),
+            ("c", "SUCCESS", "IDLE"),
+            ("a", "SUCCESS", "IDLE"),
+        ],
+        2: [
+            ("c", "IDLE", "SUCCESS"),
+            ("a", "IDLE", "RUNNING"),
+            ("c", "SUCCESS", "IDLE"),
+            ("b", "RUNNING", "IDLE"),
+        ],
+        3: [
+            ("c", "IDLE", "SUCCESS"),
+            ("a", "RUNNING", "SUCCESS"),
+            ("b", "IDLE", "RUNNING"),
+            ("c", "SUCCESS", "IDLE"),
+            ("a", "SUCCESS", "IDLE"),
+        ],
+        4: [
+            ("c", "IDLE", "SUCCESS"),
+            ("a", "IDLE", "RUNNING"),
+            ("c", "SUCCESS", "IDLE"),
+            ("b", "RUNNING", "IDLE"),
+            ("a", "RUNNING", "IDLE"),
+            ("r", "RUNNING", "IDLE"),
+        ],
     }
 
 
 def test_reactive_fallback_halts_the_running_child_when_the_condition_succeeds() -> None:
     """ReactiveFallback: the failed condition is reset every tick; its SUCCESS halts the
     running a."""
-    r = run(f'<ReactiveFallback name="r">{cond("c")}{act("a")}</ReactiveFallback>',
-            {"c": [fail(), fail(), ok()], "a": [ok(5)]})
+    r = run(
+        f'<ReactiveFallback name="r">{cond("c")}{act("a")}</ReactiveFallback>',
+        {"c": [fail(), fail(), ok()], "a": [ok(5)]},
+    )
     assert r.roots == ["RUNNING", "RUNNING", "SUCCESS"]
     assert r.ticks == {
-        1: [("r", "IDLE", "RUNNING"), ("c", "IDLE", "FAILURE"), ("a", "IDLE", "RUNNING"),
-            ("c", "FAILURE", "IDLE")],
+        1: [
+            ("r", "IDLE", "RUNNING"),
+            ("c", "IDLE", "FAILURE"),
+            ("a", "IDLE", "RUNNING"),
+            ("c", "FAILURE", "IDLE"),
+        ],
         2: [("c", "IDLE", "FAILURE"), ("c", "FAILURE", "IDLE")],
-        3: [("c", "IDLE", "SUCCESS"), ("c", "SUCCESS", "IDLE"), ("a", "RUNNING", "IDLE"),
-            ("r", "RUNNING", "SUCCESS"), ("r", "SUCCESS", "IDLE")],
+        3: [
+            ("c", "IDLE", "SUCCESS"),
+            ("c", "SUCCESS", "IDLE"),
+            ("a", "RUNNING", "IDLE"),
+            ("r", "RUNNING", "SUCCESS"),
+            ("r", "SUCCESS", "IDLE"),
+        ],
     }
 
 
 def test_fallback_resumes_and_succeeds() -> None:
     """Fallback resumes at the running child and resets all children on SUCCESS."""
-    r = run(f'<Fallback name="f">{act("a")}{act("b")}{act("c")}</Fallback>',
-            {"a": [fail()], "b": [ok(1)]})
+    r = run(
+        f'<Fallback name="f">{act("a")}{act("b")}{act("c")}</Fallback>',
+        {"a": [fail()], "b": [ok(1)]},
+    )
     assert r.roots == ["RUNNING", "SUCCESS"]
     assert r.ticks == {
         1: [("f", "IDLE", "RUNNING"), ("a", "IDLE", "FAILURE"), ("b", "IDLE", "RUNNING")],
-        2: [("b", "RUNNING", "SUCCESS"), ("a", "FAILURE", "IDLE"), ("b", "SUCCESS", "IDLE"),
-            ("f", "RUNNING", "SUCCESS"), ("f", "SUCCESS", "IDLE")],
+        2: [
+            ("b", "RUNNING", "SUCCESS"),
+            ("a", "FAILURE", "IDLE"),
+            ("b", "SUCCESS", "IDLE"),
+            ("f", "RUNNING", "SUCCESS"),
+            ("f", "SUCCESS", "IDLE"),
+        ],
     }
 
 
@@ -387,87 +556,154 @@ def test_fallback_fails_when_every_child_fails() -> None:
     assert r.roots == ["RUNNING", "FAILURE"]
     assert r.ticks == {
         1: [("f", "IDLE", "RUNNING"), ("a", "IDLE", "FAILURE"), ("b", "IDLE", "RUNNING")],
-        2: [("b", "RUNNING", "FAILURE"), ("a", "FAILURE", "IDLE"), ("b", "FAILURE", "IDLE"),
-            ("f", "RUNNING", "FAILURE"), ("f", "FAILURE", "IDLE")],
+        2: [
+            ("b", "RUNNING", "FAILURE"),
+            ("a", "FAILURE", "IDLE"),
+            ("b", "FAILURE", "IDLE"),
+            ("f", "RUNNING", "FAILURE"),
+            ("f", "FAILURE", "IDLE"),
+        ],
     }
 
 
 def test_parallel_default_thresholds_wait_for_all_successes() -> None:
     """success_count=-1 (all), failure_count=1: completed children are not ticked again."""
-    r = run(f'<Parallel name="p">{act("a")}{act("b")}{act("c")}</Parallel>',
-            {"a": [ok(1)], "b": [ok(2)]})
+    r = run(
+        f'<Parallel name="p">{act("a")}{act("b")}{act("c")}</Parallel>',
+        {"a": [ok(1)], "b": [ok(2)]},
+    )
     assert r.roots == ["RUNNING", "RUNNING", "SUCCESS"]
     assert r.ticks == {
-        1: [("p", "IDLE", "RUNNING"), ("a", "IDLE", "RUNNING"), ("b", "IDLE", "RUNNING"),
-            ("c", "IDLE", "SUCCESS")],
+        1: [
+            ("p", "IDLE", "RUNNING"),
+            ("a", "IDLE", "RUNNING"),
+            ("b", "IDLE", "RUNNING"),
+            ("c", "IDLE", "SUCCESS"),
+        ],
         2: [("a", "RUNNING", "SUCCESS")],
-        3: [("b", "RUNNING", "SUCCESS"), ("a", "SUCCESS", "IDLE"), ("b", "SUCCESS", "IDLE"),
-            ("c", "SUCCESS", "IDLE"), ("p", "RUNNING", "SUCCESS"), ("p", "SUCCESS", "IDLE")],
+        3: [
+            ("b", "RUNNING", "SUCCESS"),
+            ("a", "SUCCESS", "IDLE"),
+            ("b", "SUCCESS", "IDLE"),
+            ("c", "SUCCESS", "IDLE"),
+            ("p", "RUNNING", "SUCCESS"),
+            ("p", "SUCCESS", "IDLE"),
+        ],
     }
 
 
 def test_parallel_failure_halts_the_running_children() -> None:
     """One failure (failure_count=1) halts the RUNNING children (RUNNING->IDLE) in child order."""
-    r = run(f'<Parallel name="p" success_count="2" failure_count="1">'
-            f'{act("a")}{act("b")}{act("c")}</Parallel>',
-            {"a": [ok(2)], "b": [fail(1)], "c": [ok(3)]})
+    r = run(
+        f'<Parallel name="p" success_count="2" failure_count="1">'
+        f"{act('a')}{act('b')}{act('c')}</Parallel>",
+        {"a": [ok(2)], "b": [fail(1)], "c": [ok(3)]},
+    )
     assert r.roots == ["RUNNING", "FAILURE"]
     assert r.ticks == {
-        1: [("p", "IDLE", "RUNNING"), ("a", "IDLE", "RUNNING"), ("b", "IDLE", "RUNNING"),
-            ("c", "IDLE", "RUNNING")],
-        2: [("b", "RUNNING", "FAILURE"), ("a", "RUNNING", "IDLE"), ("b", "FAILURE", "IDLE"),
-            ("c", "RUNNING", "IDLE"), ("p", "RUNNING", "FAILURE"), ("p", "FAILURE", "IDLE")],
+        1: [
+            ("p", "IDLE", "RUNNING"),
+            ("a", "IDLE", "RUNNING"),
+            ("b", "IDLE", "RUNNING"),
+            ("c", "IDLE", "RUNNING"),
+        ],
+        2: [
+            ("b", "RUNNING", "FAILURE"),
+            ("a", "RUNNING", "IDLE"),
+            ("b", "FAILURE", "IDLE"),
+            ("c", "RUNNING", "IDLE"),
+            ("p", "RUNNING", "FAILURE"),
+            ("p", "FAILURE", "IDLE"),
+        ],
     }
 
 
 def test_parallel_negative_failure_count_and_one_success() -> None:
     """success_count=1 succeeds at the first success; failure_count=-1 means all three must fail."""
-    r = run(f'<Parallel name="p" success_count="1" failure_count="-1">'
-            f'{act("a")}{act("b")}{act("c")}</Parallel>',
-            {"a": [fail()], "b": [ok(2)], "c": [ok(3)]})
+    r = run(
+        f'<Parallel name="p" success_count="1" failure_count="-1">'
+        f"{act('a')}{act('b')}{act('c')}</Parallel>",
+        {"a": [fail()], "b": [ok(2)], "c": [ok(3)]},
+    )
     assert r.roots == ["RUNNING", "RUNNING", "SUCCESS"]
     assert r.ticks == {
-        1: [("p", "IDLE", "RUNNING"), ("a", "IDLE", "FAILURE"), ("b", "IDLE", "RUNNING"),
-            ("c", "IDLE", "RUNNING")],
-        3: [("b", "RUNNING", "SUCCESS"), ("a", "FAILURE", "IDLE"), ("b", "SUCCESS", "IDLE"),
-            ("c", "RUNNING", "IDLE"), ("p", "RUNNING", "SUCCESS"), ("p", "SUCCESS", "IDLE")],
+        1: [
+            ("p", "IDLE", "RUNNING"),
+            ("a", "IDLE", "FAILURE"),
+            ("b", "IDLE", "RUNNING"),
+            ("c", "IDLE", "RUNNING"),
+        ],
+        3: [
+            ("b", "RUNNING", "SUCCESS"),
+            ("a", "FAILURE", "IDLE"),
+            ("b", "SUCCESS", "IDLE"),
+            ("c", "RUNNING", "IDLE"),
+            ("p", "RUNNING", "SUCCESS"),
+            ("p", "SUCCESS", "IDLE"),
+        ],
     }
 
 
 def test_parallel_negative_success_count() -> None:
     """success_count=-2 with 3 children means 2 successes (N+t+1); one failure is tolerated."""
-    r = run(f'<Parallel name="p" success_count="-2" failure_count="2">'
-            f'{act("a")}{act("b")}{act("c")}</Parallel>',
-            {"a": [fail(1)], "b": [ok(2)], "c": [ok(3)]})
+    r = run(
+        f'<Parallel name="p" success_count="-2" failure_count="2">'
+        f"{act('a')}{act('b')}{act('c')}</Parallel>",
+        {"a": [fail(1)], "b": [ok(2)], "c": [ok(3)]},
+    )
     assert r.roots == ["RUNNING", "RUNNING", "RUNNING", "SUCCESS"]
     assert r.ticks == {
-        1: [("p", "IDLE", "RUNNING"), ("a", "IDLE", "RUNNING"), ("b", "IDLE", "RUNNING"),
-            ("c", "IDLE", "RUNNING")],
+        1: [
+            ("p", "IDLE", "RUNNING"),
+            ("a", "IDLE", "RUNNING"),
+            ("b", "IDLE", "RUNNING"),
+            ("c", "IDLE", "RUNNING"),
+        ],
         2: [("a", "RUNNING", "FAILURE")],
         3: [("b", "RUNNING", "SUCCESS")],
-        4: [("c", "RUNNING", "SUCCESS"), ("a", "FAILURE", "IDLE"), ("b", "SUCCESS", "IDLE"),
-            ("c", "SUCCESS", "IDLE"), ("p", "RUNNING", "SUCCESS"), ("p", "SUCCESS", "IDLE")],
+        4: [
+            ("c", "RUNNING", "SUCCESS"),
+            ("a", "FAILURE", "IDLE"),
+            ("b", "SUCCESS", "IDLE"),
+            ("c", "SUCCESS", "IDLE"),
+            ("p", "RUNNING", "SUCCESS"),
+            ("p", "SUCCESS", "IDLE"),
+        ],
     }
 
 
 def test_parallel_fails_as_soon_as_success_is_impossible() -> None:
     """success_count=3: the first failure makes 3 successes impossible -> FAILURE at once."""
-    r = run(f'<Parallel name="p" success_count="3" failure_count="3">'
-            f'{act("a")}{act("b")}{act("c")}</Parallel>',
-            {"a": [ok(2)], "b": [fail(1)], "c": [ok(3)]})
+    r = run(
+        f'<Parallel name="p" success_count="3" failure_count="3">'
+        f"{act('a')}{act('b')}{act('c')}</Parallel>",
+        {"a": [ok(2)], "b": [fail(1)], "c": [ok(3)]},
+    )
     assert r.roots == ["RUNNING", "FAILURE"]
     assert r.ticks == {
-        1: [("p", "IDLE", "RUNNING"), ("a", "IDLE", "RUNNING"), ("b", "IDLE", "RUNNING"),
-            ("c", "IDLE", "RUNNING")],
-        2: [("b", "RUNNING", "FAILURE"), ("a", "RUNNING", "IDLE"), ("b", "FAILURE", "IDLE"),
-            ("c", "RUNNING", "IDLE"), ("p", "RUNNING", "FAILURE"), ("p", "FAILURE", "IDLE")],
+        1: [
+            ("p", "IDLE", "RUNNING"),
+            ("a", "IDLE", "RUNNING"),
+            ("b", "IDLE", "RUNNING"),
+            ("c", "IDLE", "RUNNING"),
+        ],
+        2: [
+            ("b", "RUNNING", "FAILURE"),
+            ("a", "RUNNING", "IDLE"),
+            ("b", "FAILURE", "IDLE"),
+            ("c", "RUNNING", "IDLE"),
+            ("p", "RUNNING", "FAILURE"),
+            ("p", "FAILURE", "IDLE"),
+        ],
     }
 
 
 def test_parallel_all_skipped_with_default_success_count_succeeds() -> None:
     """The quirk: with success_count=-1 the skipped children count as successes -> SUCCESS."""
-    r = run('<Parallel name="p"><AlwaysSuccess name="x" _skipIf="true"/>'
-            '<AlwaysSuccess name="y" _skipIf="true"/></Parallel>')
+    r = run(
+        '<Parallel name="p"><AlwaysSuccess name="x" _skipIf="true"/>'
+        '<AlwaysSuccess name="y" _skipIf="true"/></Parallel>'
+    )
     assert r.roots == ["SUCCESS"]
     assert r.ticks == {
         1: [("p", "IDLE", "RUNNING"), ("p", "RUNNING", "SUCCESS"), ("p", "SUCCESS", "IDLE")],
@@ -476,52 +712,85 @@ def test_parallel_all_skipped_with_default_success_count_succeeds() -> None:
 
 def test_parallel_all_runs_every_child_then_counts_failures() -> None:
     """ParallelAll waits for every child; 2 failures >= max_failures=2 -> FAILURE."""
-    r = run(f'<ParallelAll name="p" max_failures="2">{act("a")}{act("b")}{act("c")}</ParallelAll>',
-            {"a": [fail(1)], "b": [ok(2)], "c": [fail()]})
+    r = run(
+        f'<ParallelAll name="p" max_failures="2">{act("a")}{act("b")}{act("c")}</ParallelAll>',
+        {"a": [fail(1)], "b": [ok(2)], "c": [fail()]},
+    )
     assert r.roots == ["RUNNING", "RUNNING", "FAILURE"]
     assert r.ticks == {
-        1: [("p", "IDLE", "RUNNING"), ("a", "IDLE", "RUNNING"), ("b", "IDLE", "RUNNING"),
-            ("c", "IDLE", "FAILURE")],
+        1: [
+            ("p", "IDLE", "RUNNING"),
+            ("a", "IDLE", "RUNNING"),
+            ("b", "IDLE", "RUNNING"),
+            ("c", "IDLE", "FAILURE"),
+        ],
         2: [("a", "RUNNING", "FAILURE")],
-        3: [("b", "RUNNING", "SUCCESS"), ("a", "FAILURE", "IDLE"), ("b", "SUCCESS", "IDLE"),
-            ("c", "FAILURE", "IDLE"), ("p", "RUNNING", "FAILURE"), ("p", "FAILURE", "IDLE")],
+        3: [
+            ("b", "RUNNING", "SUCCESS"),
+            ("a", "FAILURE", "IDLE"),
+            ("b", "SUCCESS", "IDLE"),
+            ("c", "FAILURE", "IDLE"),
+            ("p", "RUNNING", "FAILURE"),
+            ("p", "FAILURE", "IDLE"),
+        ],
     }
 
 
 def test_parallel_all_negative_max_failures() -> None:
     """max_failures=-1 means N: one failure out of two children still succeeds."""
-    r = run(f'<ParallelAll name="p" max_failures="-1">{act("a")}{act("b")}</ParallelAll>',
-            {"a": [fail(1)]})
+    r = run(
+        f'<ParallelAll name="p" max_failures="-1">{act("a")}{act("b")}</ParallelAll>',
+        {"a": [fail(1)]},
+    )
     assert r.roots == ["RUNNING", "SUCCESS"]
     assert r.ticks == {
         1: [("p", "IDLE", "RUNNING"), ("a", "IDLE", "RUNNING"), ("b", "IDLE", "SUCCESS")],
-        2: [("a", "RUNNING", "FAILURE"), ("a", "FAILURE", "IDLE"), ("b", "SUCCESS", "IDLE"),
-            ("p", "RUNNING", "SUCCESS"), ("p", "SUCCESS", "IDLE")],
+        2: [
+            ("a", "RUNNING", "FAILURE"),
+            ("a", "FAILURE", "IDLE"),
+            ("b", "SUCCESS", "IDLE"),
+            ("p", "RUNNING", "SUCCESS"),
+            ("p", "SUCCESS", "IDLE"),
+        ],
     }
 
 
 def test_if_then_else_runs_the_then_branch() -> None:
     """The condition runs until it completes, then the then-branch; all reset at the end."""
-    r = run(f'<IfThenElse name="i">{act("c")}{act("t")}{act("e")}</IfThenElse>',
-            {"c": [ok(1)], "t": [fail(1)]})
+    r = run(
+        f'<IfThenElse name="i">{act("c")}{act("t")}{act("e")}</IfThenElse>',
+        {"c": [ok(1)], "t": [fail(1)]},
+    )
     assert r.roots == ["RUNNING", "RUNNING", "FAILURE"]
     assert r.ticks == {
         1: [("i", "IDLE", "RUNNING"), ("c", "IDLE", "RUNNING")],
         2: [("c", "RUNNING", "SUCCESS"), ("t", "IDLE", "RUNNING")],
-        3: [("t", "RUNNING", "FAILURE"), ("c", "SUCCESS", "IDLE"), ("t", "FAILURE", "IDLE"),
-            ("i", "RUNNING", "FAILURE"), ("i", "FAILURE", "IDLE")],
+        3: [
+            ("t", "RUNNING", "FAILURE"),
+            ("c", "SUCCESS", "IDLE"),
+            ("t", "FAILURE", "IDLE"),
+            ("i", "RUNNING", "FAILURE"),
+            ("i", "FAILURE", "IDLE"),
+        ],
     }
 
 
 def test_if_then_else_runs_the_else_branch() -> None:
     """A failed condition selects the else-branch."""
-    r = run(f'<IfThenElse name="i">{cond("c")}{act("t")}{act("e")}</IfThenElse>',
-            {"c": [fail()], "e": [ok(1)]})
+    r = run(
+        f'<IfThenElse name="i">{cond("c")}{act("t")}{act("e")}</IfThenElse>',
+        {"c": [fail()], "e": [ok(1)]},
+    )
     assert r.roots == ["RUNNING", "SUCCESS"]
     assert r.ticks == {
         1: [("i", "IDLE", "RUNNING"), ("c", "IDLE", "FAILURE"), ("e", "IDLE", "RUNNING")],
-        2: [("e", "RUNNING", "SUCCESS"), ("c", "FAILURE", "IDLE"), ("e", "SUCCESS", "IDLE"),
-            ("i", "RUNNING", "SUCCESS"), ("i", "SUCCESS", "IDLE")],
+        2: [
+            ("e", "RUNNING", "SUCCESS"),
+            ("c", "FAILURE", "IDLE"),
+            ("e", "SUCCESS", "IDLE"),
+            ("i", "RUNNING", "SUCCESS"),
+            ("i", "SUCCESS", "IDLE"),
+        ],
     }
 
 
@@ -531,30 +800,50 @@ def test_if_then_else_without_else_fails() -> None:
     r = run(f'<IfThenElse name="i">{cond("c")}{act("t")}</IfThenElse>', {"c": [fail()]})
     assert r.roots == ["FAILURE"]
     assert r.ticks == {
-        1: [("i", "IDLE", "RUNNING"), ("c", "IDLE", "FAILURE"), ("i", "RUNNING", "FAILURE"),
-            ("i", "FAILURE", "IDLE")],
+        1: [
+            ("i", "IDLE", "RUNNING"),
+            ("c", "IDLE", "FAILURE"),
+            ("i", "RUNNING", "FAILURE"),
+            ("i", "FAILURE", "IDLE"),
+        ],
     }
 
 
 def test_if_then_else_is_not_reactive() -> None:
     """The condition is not evaluated again while the branch runs (c would fail on tick 2)."""
-    r = run(f'<Sequence name="q"><IfThenElse name="i">{cond("c")}{act("t")}{act("e")}'
-            '</IfThenElse></Sequence>', {"c": [ok(), fail()], "t": [ok(2)]})
+    r = run(
+        f'<Sequence name="q"><IfThenElse name="i">{cond("c")}{act("t")}{act("e")}'
+        "</IfThenElse></Sequence>",
+        {"c": [ok(), fail()], "t": [ok(2)]},
+    )
     assert r.roots == ["RUNNING", "RUNNING", "SUCCESS"]
     assert r.ticks == {
-        1: [("q", "IDLE", "RUNNING"), ("i", "IDLE", "RUNNING"), ("c", "IDLE", "SUCCESS"),
-            ("t", "IDLE", "RUNNING")],
-        3: [("t", "RUNNING", "SUCCESS"), ("c", "SUCCESS", "IDLE"), ("t", "SUCCESS", "IDLE"),
-            ("i", "RUNNING", "SUCCESS"), ("i", "SUCCESS", "IDLE"), ("q", "RUNNING", "SUCCESS"),
-            ("q", "SUCCESS", "IDLE")],
+        1: [
+            ("q", "IDLE", "RUNNING"),
+            ("i", "IDLE", "RUNNING"),
+            ("c", "IDLE", "SUCCESS"),
+            ("t", "IDLE", "RUNNING"),
+        ],
+        3: [
+            ("t", "RUNNING", "SUCCESS"),
+            ("c", "SUCCESS", "IDLE"),
+            ("t", "SUCCESS", "IDLE"),
+            ("i", "RUNNING", "SUCCESS"),
+            ("i", "SUCCESS", "IDLE"),
+            ("q", "RUNNING", "SUCCESS"),
+            ("q", "SUCCESS", "IDLE"),
+        ],
     }
 
 
 def test_while_do_else_halts_the_other_branch() -> None:
     """WhileDoElse re-evaluates the condition every tick: its change halts the running branch
     (d RUNNING->IDLE) and starts the other one, and back."""
-    r = run(f'<WhileDoElse name="w">{cond("c")}{act("d")}{act("e")}</WhileDoElse>',
-            {"c": [ok(), fail(), ok()], "d": [ok(5)], "e": [ok(5)]}, max_ticks=4)
+    r = run(
+        f'<WhileDoElse name="w">{cond("c")}{act("d")}{act("e")}</WhileDoElse>',
+        {"c": [ok(), fail(), ok()], "d": [ok(5)], "e": [ok(5)]},
+        max_ticks=4,
+    )
     assert r.roots == ["RUNNING", "RUNNING", "RUNNING", "RUNNING"]
     assert r.ticks == {
         1: [("w", "IDLE", "RUNNING"), ("c", "IDLE", "SUCCESS"), ("d", "IDLE", "RUNNING")],
@@ -566,134 +855,233 @@ def test_while_do_else_halts_the_other_branch() -> None:
 
 def test_while_do_else_without_else_fails_and_halts_the_do_branch() -> None:
     """Two children: a failed condition halts the do-branch and fails."""
-    r = run(f'<WhileDoElse name="w">{cond("c")}{act("d")}</WhileDoElse>',
-            {"c": [ok(), fail()], "d": [ok(5)]})
+    r = run(
+        f'<WhileDoElse name="w">{cond("c")}{act("d")}</WhileDoElse>',
+        {"c": [ok(), fail()], "d": [ok(5)]},
+    )
     assert r.roots == ["RUNNING", "FAILURE"]
     assert r.ticks == {
         1: [("w", "IDLE", "RUNNING"), ("c", "IDLE", "SUCCESS"), ("d", "IDLE", "RUNNING")],
-        2: [("c", "SUCCESS", "FAILURE"), ("c", "FAILURE", "IDLE"), ("d", "RUNNING", "IDLE"),
-            ("w", "RUNNING", "FAILURE"), ("w", "FAILURE", "IDLE")],
+        2: [
+            ("c", "SUCCESS", "FAILURE"),
+            ("c", "FAILURE", "IDLE"),
+            ("d", "RUNNING", "IDLE"),
+            ("w", "RUNNING", "FAILURE"),
+            ("w", "FAILURE", "IDLE"),
+        ],
     }
 
 
 def test_switch_matches_strings() -> None:
     """Switch2 compares the variable to each case as strings first. It never sets itself RUNNING
     before ticking: its own IDLE->SUCCESS comes after the child's reset."""
-    r = run(f'<Sequence name="q">{script("s", "v:=&apos;b&apos;")}'
-            '<Switch2 name="w" variable="{v}" '
-            f'case_1="a" case_2="b">{act("x")}{act("y")}{act("z")}</Switch2></Sequence>')
+    r = run(
+        f'<Sequence name="q">{script("s", "v:=&apos;b&apos;")}'
+        '<Switch2 name="w" variable="{v}" '
+        f'case_1="a" case_2="b">{act("x")}{act("y")}{act("z")}</Switch2></Sequence>'
+    )
     assert r.roots == ["SUCCESS"]
     assert r.ticks == {
-        1: [("q", "IDLE", "RUNNING"), ("s", "IDLE", "SUCCESS"), ("y", "IDLE", "SUCCESS"),
-            ("y", "SUCCESS", "IDLE"), ("w", "IDLE", "SUCCESS"), ("s", "SUCCESS", "IDLE"),
-            ("w", "SUCCESS", "IDLE"), ("q", "RUNNING", "SUCCESS"), ("q", "SUCCESS", "IDLE")],
+        1: [
+            ("q", "IDLE", "RUNNING"),
+            ("s", "IDLE", "SUCCESS"),
+            ("y", "IDLE", "SUCCESS"),
+            ("y", "SUCCESS", "IDLE"),
+            ("w", "IDLE", "SUCCESS"),
+            ("s", "SUCCESS", "IDLE"),
+            ("w", "SUCCESS", "IDLE"),
+            ("q", "RUNNING", "SUCCESS"),
+            ("q", "SUCCESS", "IDLE"),
+        ],
     }
 
 
 def test_switch_matches_integers() -> None:
     """An integer entry 2 matches the case "02" (compared as integers)."""
-    r = run(f'<Sequence name="q">{script("s", "v:=2")}<Switch2 name="w" variable="{{v}}" '
-            f'case_1="1" case_2="02">{act("x")}{act("y")}{act("z")}</Switch2></Sequence>')
+    r = run(
+        f'<Sequence name="q">{script("s", "v:=2")}<Switch2 name="w" variable="{{v}}" '
+        f'case_1="1" case_2="02">{act("x")}{act("y")}{act("z")}</Switch2></Sequence>'
+    )
     assert r.roots == ["SUCCESS"]
     assert r.ticks == {
-        1: [("q", "IDLE", "RUNNING"), ("s", "IDLE", "SUCCESS"), ("y", "IDLE", "SUCCESS"),
-            ("y", "SUCCESS", "IDLE"), ("w", "IDLE", "SUCCESS"), ("s", "SUCCESS", "IDLE"),
-            ("w", "SUCCESS", "IDLE"), ("q", "RUNNING", "SUCCESS"), ("q", "SUCCESS", "IDLE")],
+        1: [
+            ("q", "IDLE", "RUNNING"),
+            ("s", "IDLE", "SUCCESS"),
+            ("y", "IDLE", "SUCCESS"),
+            ("y", "SUCCESS", "IDLE"),
+            ("w", "IDLE", "SUCCESS"),
+            ("s", "SUCCESS", "IDLE"),
+            ("w", "SUCCESS", "IDLE"),
+            ("q", "RUNNING", "SUCCESS"),
+            ("q", "SUCCESS", "IDLE"),
+        ],
     }
 
 
 def test_switch_matches_reals() -> None:
     """A real entry 0.5 matches the case "0.50" (compared as reals)."""
-    r = run(f'<Sequence name="q">{script("s", "v:=0.5")}<Switch2 name="w" variable="{{v}}" '
-            f'case_1="1" case_2="0.50">{act("x")}{act("y")}{act("z")}</Switch2></Sequence>')
+    r = run(
+        f'<Sequence name="q">{script("s", "v:=0.5")}<Switch2 name="w" variable="{{v}}" '
+        f'case_1="1" case_2="0.50">{act("x")}{act("y")}{act("z")}</Switch2></Sequence>'
+    )
     assert r.roots == ["SUCCESS"]
     assert r.ticks == {
-        1: [("q", "IDLE", "RUNNING"), ("s", "IDLE", "SUCCESS"), ("y", "IDLE", "SUCCESS"),
-            ("y", "SUCCESS", "IDLE"), ("w", "IDLE", "SUCCESS"), ("s", "SUCCESS", "IDLE"),
-            ("w", "SUCCESS", "IDLE"), ("q", "RUNNING", "SUCCESS"), ("q", "SUCCESS", "IDLE")],
+        1: [
+            ("q", "IDLE", "RUNNING"),
+            ("s", "IDLE", "SUCCESS"),
+            ("y", "IDLE", "SUCCESS"),
+            ("y", "SUCCESS", "IDLE"),
+            ("w", "IDLE", "SUCCESS"),
+            ("s", "SUCCESS", "IDLE"),
+            ("w", "SUCCESS", "IDLE"),
+            ("q", "RUNNING", "SUCCESS"),
+            ("q", "SUCCESS", "IDLE"),
+        ],
     }
 
 
 def test_switch_without_a_matching_case_or_entry_runs_the_default() -> None:
     """A missing blackboard entry selects the default (last) child."""
-    r = run(f'<Switch2 name="w" variable="{{nothing}}" case_1="1" case_2="2">'
-            f'{act("x")}{act("y")}{act("z")}</Switch2>')
+    r = run(
+        f'<Switch2 name="w" variable="{{nothing}}" case_1="1" case_2="2">'
+        f"{act('x')}{act('y')}{act('z')}</Switch2>"
+    )
     assert r.roots == ["SUCCESS"]
     assert r.ticks == {
-        1: [("z", "IDLE", "SUCCESS"), ("z", "SUCCESS", "IDLE"), ("w", "IDLE", "SUCCESS"),
-            ("w", "SUCCESS", "IDLE")],
+        1: [
+            ("z", "IDLE", "SUCCESS"),
+            ("z", "SUCCESS", "IDLE"),
+            ("w", "IDLE", "SUCCESS"),
+            ("w", "SUCCESS", "IDLE"),
+        ],
     }
 
 
 def test_switch_change_of_case_halts_the_running_child() -> None:
     """The variable changes while x runs: x is halted (RUNNING->IDLE) and y starts, same tick."""
-    r = run(f'<Sequence name="top">{script("s", "v:=1")}<Parallel name="p" success_count="2">'
-            f'<Switch2 name="w" variable="{{v}}" case_1="1" case_2="2">{act("x")}{act("y")}'
-            f'{act("d")}</Switch2><Sequence name="q">{act("b")}{script("s2", "v:=2")}</Sequence>'
-            '</Parallel></Sequence>', {"x": [ok(5)], "y": [ok(1)], "b": [ok(1)]})
+    r = run(
+        f'<Sequence name="top">{script("s", "v:=1")}<Parallel name="p" success_count="2">'
+        f'<Switch2 name="w" variable="{{v}}" case_1="1" case_2="2">{act("x")}{act("y")}'
+        f'{act("d")}</Switch2><Sequence name="q">{act("b")}{script("s2", "v:=2")}</Sequence>'
+        "</Parallel></Sequence>",
+        {"x": [ok(5)], "y": [ok(1)], "b": [ok(1)]},
+    )
     assert r.roots == ["RUNNING", "RUNNING", "RUNNING", "SUCCESS"]
     assert r.ticks == {
-        1: [("top", "IDLE", "RUNNING"), ("s", "IDLE", "SUCCESS"), ("p", "IDLE", "RUNNING"),
-            ("x", "IDLE", "RUNNING"), ("w", "IDLE", "RUNNING"), ("q", "IDLE", "RUNNING"),
-            ("b", "IDLE", "RUNNING")],
-        2: [("b", "RUNNING", "SUCCESS"), ("s2", "IDLE", "SUCCESS"), ("b", "SUCCESS", "IDLE"),
-            ("s2", "SUCCESS", "IDLE"), ("q", "RUNNING", "SUCCESS")],
+        1: [
+            ("top", "IDLE", "RUNNING"),
+            ("s", "IDLE", "SUCCESS"),
+            ("p", "IDLE", "RUNNING"),
+            ("x", "IDLE", "RUNNING"),
+            ("w", "IDLE", "RUNNING"),
+            ("q", "IDLE", "RUNNING"),
+            ("b", "IDLE", "RUNNING"),
+        ],
+        2: [
+            ("b", "RUNNING", "SUCCESS"),
+            ("s2", "IDLE", "SUCCESS"),
+            ("b", "SUCCESS", "IDLE"),
+            ("s2", "SUCCESS", "IDLE"),
+            ("q", "RUNNING", "SUCCESS"),
+        ],
         3: [("x", "RUNNING", "IDLE"), ("y", "IDLE", "RUNNING")],
-        4: [("y", "RUNNING", "SUCCESS"), ("y", "SUCCESS", "IDLE"), ("w", "RUNNING", "SUCCESS"),
-            ("w", "SUCCESS", "IDLE"), ("q", "SUCCESS", "IDLE"), ("p", "RUNNING", "SUCCESS"),
-            ("s", "SUCCESS", "IDLE"), ("p", "SUCCESS", "IDLE"), ("top", "RUNNING", "SUCCESS"),
-            ("top", "SUCCESS", "IDLE")],
+        4: [
+            ("y", "RUNNING", "SUCCESS"),
+            ("y", "SUCCESS", "IDLE"),
+            ("w", "RUNNING", "SUCCESS"),
+            ("w", "SUCCESS", "IDLE"),
+            ("q", "SUCCESS", "IDLE"),
+            ("p", "RUNNING", "SUCCESS"),
+            ("s", "SUCCESS", "IDLE"),
+            ("p", "SUCCESS", "IDLE"),
+            ("top", "RUNNING", "SUCCESS"),
+            ("top", "SUCCESS", "IDLE"),
+        ],
     }
 
 
 def test_switch_with_a_skipped_child_is_skipped() -> None:
     """The selected child is skipped: the Switch returns SKIPPED and logs nothing."""
-    r = run(f'<Switch2 name="w" variable="1" case_1="1" case_2="2">'
-            f'<AlwaysSuccess name="x" _skipIf="true"/>{act("y")}{act("z")}</Switch2>', max_ticks=2)
+    r = run(
+        f'<Switch2 name="w" variable="1" case_1="1" case_2="2">'
+        f'<AlwaysSuccess name="x" _skipIf="true"/>{act("y")}{act("z")}</Switch2>',
+        max_ticks=2,
+    )
     assert r.roots == ["SKIPPED", "SKIPPED"]
-    assert r.ticks == {
-    }
+    assert r.ticks == {}
 
 
 # -- decorators -------------------------------------------------------------------------------
 def test_inverter_flips_results_and_resets_its_child() -> None:
     """Inverter: SUCCESS<->FAILURE; the child is reset before the Inverter's own result."""
-    r = run(f'<Sequence name="q"><Inverter name="i">{act("a")}</Inverter>'
-            f'<Inverter name="j">{act("b")}</Inverter></Sequence>', {"a": [fail(1)]})
+    r = run(
+        f'<Sequence name="q"><Inverter name="i">{act("a")}</Inverter>'
+        f'<Inverter name="j">{act("b")}</Inverter></Sequence>',
+        {"a": [fail(1)]},
+    )
     assert r.roots == ["RUNNING", "FAILURE"]
     assert r.ticks == {
         1: [("q", "IDLE", "RUNNING"), ("i", "IDLE", "RUNNING"), ("a", "IDLE", "RUNNING")],
-        2: [("a", "RUNNING", "FAILURE"), ("a", "FAILURE", "IDLE"), ("i", "RUNNING", "SUCCESS"),
-            ("j", "IDLE", "RUNNING"), ("b", "IDLE", "SUCCESS"), ("b", "SUCCESS", "IDLE"),
-            ("j", "RUNNING", "FAILURE"), ("i", "SUCCESS", "IDLE"), ("j", "FAILURE", "IDLE"),
-            ("q", "RUNNING", "FAILURE"), ("q", "FAILURE", "IDLE")],
+        2: [
+            ("a", "RUNNING", "FAILURE"),
+            ("a", "FAILURE", "IDLE"),
+            ("i", "RUNNING", "SUCCESS"),
+            ("j", "IDLE", "RUNNING"),
+            ("b", "IDLE", "SUCCESS"),
+            ("b", "SUCCESS", "IDLE"),
+            ("j", "RUNNING", "FAILURE"),
+            ("i", "SUCCESS", "IDLE"),
+            ("j", "FAILURE", "IDLE"),
+            ("q", "RUNNING", "FAILURE"),
+            ("q", "FAILURE", "IDLE"),
+        ],
     }
 
 
 def test_inverter_passes_skipped_through() -> None:
     """A skipped child makes the Inverter return SKIPPED: it stays RUNNING until its parent
     resets it."""
-    r = run(f'<Sequence name="q"><Inverter name="i"><AlwaysSuccess name="x" _skipIf="true"/>'
-            f'</Inverter>{act("a")}</Sequence>')
+    r = run(
+        f'<Sequence name="q"><Inverter name="i"><AlwaysSuccess name="x" _skipIf="true"/>'
+        f"</Inverter>{act('a')}</Sequence>"
+    )
     assert r.roots == ["SUCCESS"]
     assert r.ticks == {
-        1: [("q", "IDLE", "RUNNING"), ("i", "IDLE", "RUNNING"), ("a", "IDLE", "SUCCESS"),
-            ("i", "RUNNING", "IDLE"), ("a", "SUCCESS", "IDLE"), ("q", "RUNNING", "SUCCESS"),
-            ("q", "SUCCESS", "IDLE")],
+        1: [
+            ("q", "IDLE", "RUNNING"),
+            ("i", "IDLE", "RUNNING"),
+            ("a", "IDLE", "SUCCESS"),
+            ("i", "RUNNING", "IDLE"),
+            ("a", "SUCCESS", "IDLE"),
+            ("q", "RUNNING", "SUCCESS"),
+            ("q", "SUCCESS", "IDLE"),
+        ],
     }
 
 
 def test_force_success_and_force_failure() -> None:
     """ForceSuccess turns a FAILURE into SUCCESS, ForceFailure a SUCCESS into FAILURE."""
-    r = run(f'<Sequence name="q"><ForceSuccess name="fs">{act("a")}</ForceSuccess>'
-            f'<ForceFailure name="ff">{act("b")}</ForceFailure></Sequence>', {"a": [fail(1)]})
+    r = run(
+        f'<Sequence name="q"><ForceSuccess name="fs">{act("a")}</ForceSuccess>'
+        f'<ForceFailure name="ff">{act("b")}</ForceFailure></Sequence>',
+        {"a": [fail(1)]},
+    )
     assert r.roots == ["RUNNING", "FAILURE"]
     assert r.ticks == {
         1: [("q", "IDLE", "RUNNING"), ("fs", "IDLE", "RUNNING"), ("a", "IDLE", "RUNNING")],
-        2: [("a", "RUNNING", "FAILURE"), ("a", "FAILURE", "IDLE"), ("fs", "RUNNING", "SUCCESS"),
-            ("ff", "IDLE", "RUNNING"), ("b", "IDLE", "SUCCESS"), ("b", "SUCCESS", "IDLE"),
-            ("ff", "RUNNING", "FAILURE"), ("fs", "SUCCESS", "IDLE"), ("ff", "FAILURE", "IDLE"),
-            ("q", "RUNNING", "FAILURE"), ("q", "FAILURE", "IDLE")],
+        2: [
+            ("a", "RUNNING", "FAILURE"),
+            ("a", "FAILURE", "IDLE"),
+            ("fs", "RUNNING", "SUCCESS"),
+            ("ff", "IDLE", "RUNNING"),
+            ("b", "IDLE", "SUCCESS"),
+            ("b", "SUCCESS", "IDLE"),
+            ("ff", "RUNNING", "FAILURE"),
+            ("fs", "SUCCESS", "IDLE"),
+            ("ff", "FAILURE", "IDLE"),
+            ("q", "RUNNING", "FAILURE"),
+            ("q", "FAILURE", "IDLE"),
+        ],
     }
 
 
@@ -702,23 +1090,39 @@ def test_repeat_loops_within_one_tick_while_the_child_succeeds_synchronously() -
     r = run(f'<Repeat name="r" num_cycles="3">{act("a")}</Repeat>')
     assert r.roots == ["SUCCESS"]
     assert r.ticks == {
-        1: [("r", "IDLE", "RUNNING"), ("a", "IDLE", "SUCCESS"), ("a", "SUCCESS", "IDLE"),
-            ("a", "IDLE", "SUCCESS"), ("a", "SUCCESS", "IDLE"), ("a", "IDLE", "SUCCESS"),
-            ("a", "SUCCESS", "IDLE"), ("r", "RUNNING", "SUCCESS"), ("r", "SUCCESS", "IDLE")],
+        1: [
+            ("r", "IDLE", "RUNNING"),
+            ("a", "IDLE", "SUCCESS"),
+            ("a", "SUCCESS", "IDLE"),
+            ("a", "IDLE", "SUCCESS"),
+            ("a", "SUCCESS", "IDLE"),
+            ("a", "IDLE", "SUCCESS"),
+            ("a", "SUCCESS", "IDLE"),
+            ("r", "RUNNING", "SUCCESS"),
+            ("r", "SUCCESS", "IDLE"),
+        ],
     }
 
 
 def test_repeat_with_a_running_child() -> None:
     """A child completing after RUNNING does not wake up; a synchronous run does."""
-    r = run(f'<Repeat name="r" num_cycles="3">{act("a")}</Repeat>',
-            {"a": [ok(1), ok(), ok(1)]})
+    r = run(f'<Repeat name="r" num_cycles="3">{act("a")}</Repeat>', {"a": [ok(1), ok(), ok(1)]})
     assert r.roots == ["RUNNING", "RUNNING", "SUCCESS"]
     assert r.ticks == {
         1: [("r", "IDLE", "RUNNING"), ("a", "IDLE", "RUNNING")],
-        2: [("a", "RUNNING", "SUCCESS"), ("a", "SUCCESS", "IDLE"), ("a", "IDLE", "SUCCESS"),
-            ("a", "SUCCESS", "IDLE"), ("a", "IDLE", "RUNNING")],
-        3: [("a", "RUNNING", "SUCCESS"), ("a", "SUCCESS", "IDLE"), ("r", "RUNNING", "SUCCESS"),
-            ("r", "SUCCESS", "IDLE")],
+        2: [
+            ("a", "RUNNING", "SUCCESS"),
+            ("a", "SUCCESS", "IDLE"),
+            ("a", "IDLE", "SUCCESS"),
+            ("a", "SUCCESS", "IDLE"),
+            ("a", "IDLE", "RUNNING"),
+        ],
+        3: [
+            ("a", "RUNNING", "SUCCESS"),
+            ("a", "SUCCESS", "IDLE"),
+            ("r", "RUNNING", "SUCCESS"),
+            ("r", "SUCCESS", "IDLE"),
+        ],
     }
 
 
@@ -727,17 +1131,27 @@ def test_repeat_fails_with_its_child() -> None:
     r = run(f'<Repeat name="r" num_cycles="3">{act("a")}</Repeat>', {"a": [ok(), fail(1)]})
     assert r.roots == ["RUNNING", "FAILURE"]
     assert r.ticks == {
-        1: [("r", "IDLE", "RUNNING"), ("a", "IDLE", "SUCCESS"), ("a", "SUCCESS", "IDLE"),
-            ("a", "IDLE", "RUNNING")],
-        2: [("a", "RUNNING", "FAILURE"), ("a", "FAILURE", "IDLE"), ("r", "RUNNING", "FAILURE"),
-            ("r", "FAILURE", "IDLE")],
+        1: [
+            ("r", "IDLE", "RUNNING"),
+            ("a", "IDLE", "SUCCESS"),
+            ("a", "SUCCESS", "IDLE"),
+            ("a", "IDLE", "RUNNING"),
+        ],
+        2: [
+            ("a", "RUNNING", "FAILURE"),
+            ("a", "FAILURE", "IDLE"),
+            ("r", "RUNNING", "FAILURE"),
+            ("r", "FAILURE", "IDLE"),
+        ],
     }
 
 
 def test_repeat_of_a_skipped_child_is_skipped() -> None:
     """The child is skipped: Repeat returns SKIPPED (and stays RUNNING in the log)."""
-    r = run('<Repeat name="r" num_cycles="3"><AlwaysSuccess name="x" _skipIf="true"/></Repeat>',
-            max_ticks=2)
+    r = run(
+        '<Repeat name="r" num_cycles="3"><AlwaysSuccess name="x" _skipIf="true"/></Repeat>',
+        max_ticks=2,
+    )
     assert r.roots == ["SKIPPED", "SKIPPED"]
     assert r.ticks == {
         1: [("r", "IDLE", "RUNNING")],
@@ -748,125 +1162,243 @@ def test_repeat_of_a_skipped_child_is_skipped() -> None:
 def test_retry_retries_within_one_tick() -> None:
     """A synchronously failing child is retried in the same tick (IDLE->FAILURE->IDLE, twice),
     and the third attempt succeeds."""
-    r = run(f'<Sequence name="q">{act("p")}<RetryUntilSuccessful name="r" num_attempts="3">'
-            f'{act("a")}</RetryUntilSuccessful></Sequence>', {"a": [fail(), fail(), ok()]})
+    r = run(
+        f'<Sequence name="q">{act("p")}<RetryUntilSuccessful name="r" num_attempts="3">'
+        f"{act('a')}</RetryUntilSuccessful></Sequence>",
+        {"a": [fail(), fail(), ok()]},
+    )
     assert r.roots == ["SUCCESS"]
     assert r.ticks == {
-        1: [("q", "IDLE", "RUNNING"), ("p", "IDLE", "SUCCESS"), ("r", "IDLE", "RUNNING"),
-            ("a", "IDLE", "FAILURE"), ("a", "FAILURE", "IDLE"), ("a", "IDLE", "FAILURE"),
-            ("a", "FAILURE", "IDLE"), ("a", "IDLE", "SUCCESS"), ("a", "SUCCESS", "IDLE"),
-            ("r", "RUNNING", "SUCCESS"), ("p", "SUCCESS", "IDLE"), ("r", "SUCCESS", "IDLE"),
-            ("q", "RUNNING", "SUCCESS"), ("q", "SUCCESS", "IDLE")],
+        1: [
+            ("q", "IDLE", "RUNNING"),
+            ("p", "IDLE", "SUCCESS"),
+            ("r", "IDLE", "RUNNING"),
+            ("a", "IDLE", "FAILURE"),
+            ("a", "FAILURE", "IDLE"),
+            ("a", "IDLE", "FAILURE"),
+            ("a", "FAILURE", "IDLE"),
+            ("a", "IDLE", "SUCCESS"),
+            ("a", "SUCCESS", "IDLE"),
+            ("r", "RUNNING", "SUCCESS"),
+            ("p", "SUCCESS", "IDLE"),
+            ("r", "SUCCESS", "IDLE"),
+            ("q", "RUNNING", "SUCCESS"),
+            ("q", "SUCCESS", "IDLE"),
+        ],
     }
 
 
 def test_retry_exhausted_fails() -> None:
     """Three failed attempts out of num_attempts=3: FAILURE."""
-    r = run(f'<RetryUntilSuccessful name="r" num_attempts="3">{act("a")}</RetryUntilSuccessful>',
-            {"a": [fail()]})
+    r = run(
+        f'<RetryUntilSuccessful name="r" num_attempts="3">{act("a")}</RetryUntilSuccessful>',
+        {"a": [fail()]},
+    )
     assert r.roots == ["FAILURE"]
     assert r.ticks == {
-        1: [("r", "IDLE", "RUNNING"), ("a", "IDLE", "FAILURE"), ("a", "FAILURE", "IDLE"),
-            ("a", "IDLE", "FAILURE"), ("a", "FAILURE", "IDLE"), ("a", "IDLE", "FAILURE"),
-            ("a", "FAILURE", "IDLE"), ("r", "RUNNING", "FAILURE"), ("r", "FAILURE", "IDLE")],
+        1: [
+            ("r", "IDLE", "RUNNING"),
+            ("a", "IDLE", "FAILURE"),
+            ("a", "FAILURE", "IDLE"),
+            ("a", "IDLE", "FAILURE"),
+            ("a", "FAILURE", "IDLE"),
+            ("a", "IDLE", "FAILURE"),
+            ("a", "FAILURE", "IDLE"),
+            ("r", "RUNNING", "FAILURE"),
+            ("r", "FAILURE", "IDLE"),
+        ],
     }
 
 
 def test_retry_after_a_running_attempt() -> None:
     """An attempt that failed after RUNNING is retried at once (no wake-up: it did not start from
     IDLE in this tick); the retry that fails synchronously is retried again in the same tick."""
-    r = run(f'<RetryUntilSuccessful name="r" num_attempts="3">{act("a")}</RetryUntilSuccessful>',
-            {"a": [fail(1), fail(), ok(1)]})
+    r = run(
+        f'<RetryUntilSuccessful name="r" num_attempts="3">{act("a")}</RetryUntilSuccessful>',
+        {"a": [fail(1), fail(), ok(1)]},
+    )
     assert r.roots == ["RUNNING", "RUNNING", "SUCCESS"]
     assert r.ticks == {
         1: [("r", "IDLE", "RUNNING"), ("a", "IDLE", "RUNNING")],
-        2: [("a", "RUNNING", "FAILURE"), ("a", "FAILURE", "IDLE"), ("a", "IDLE", "FAILURE"),
-            ("a", "FAILURE", "IDLE"), ("a", "IDLE", "RUNNING")],
-        3: [("a", "RUNNING", "SUCCESS"), ("a", "SUCCESS", "IDLE"), ("r", "RUNNING", "SUCCESS"),
-            ("r", "SUCCESS", "IDLE")],
+        2: [
+            ("a", "RUNNING", "FAILURE"),
+            ("a", "FAILURE", "IDLE"),
+            ("a", "IDLE", "FAILURE"),
+            ("a", "FAILURE", "IDLE"),
+            ("a", "IDLE", "RUNNING"),
+        ],
+        3: [
+            ("a", "RUNNING", "SUCCESS"),
+            ("a", "SUCCESS", "IDLE"),
+            ("r", "RUNNING", "SUCCESS"),
+            ("r", "SUCCESS", "IDLE"),
+        ],
     }
 
 
 def test_retry_wake_up_reticks_the_root() -> None:
     """A failure of a child that started from IDLE makes Retry return RUNNING with a wake-up:
     the ReactiveSequence halts its condition and the root is re-ticked within tick 1."""
-    r = run(f'<ReactiveSequence name="r">{cond("c")}'
-            '<RetryUntilSuccessful name="t" num_attempts="3">'
-            f'{act("a")}</RetryUntilSuccessful></ReactiveSequence>', {"a": [fail(), ok(1)]})
+    r = run(
+        f'<ReactiveSequence name="r">{cond("c")}'
+        '<RetryUntilSuccessful name="t" num_attempts="3">'
+        f"{act('a')}</RetryUntilSuccessful></ReactiveSequence>",
+        {"a": [fail(), ok(1)]},
+    )
     assert r.roots == ["RUNNING", "SUCCESS"]
     assert r.ticks == {
-        1: [("r", "IDLE", "RUNNING"), ("c", "IDLE", "SUCCESS"), ("t", "IDLE", "RUNNING"),
-            ("a", "IDLE", "FAILURE"), ("a", "FAILURE", "IDLE"), ("c", "SUCCESS", "IDLE"),
-            ("c", "IDLE", "SUCCESS"), ("a", "IDLE", "RUNNING"), ("c", "SUCCESS", "IDLE")],
-        2: [("c", "IDLE", "SUCCESS"), ("a", "RUNNING", "SUCCESS"), ("a", "SUCCESS", "IDLE"),
-            ("t", "RUNNING", "SUCCESS"), ("c", "SUCCESS", "IDLE"), ("t", "SUCCESS", "IDLE"),
-            ("r", "RUNNING", "SUCCESS"), ("r", "SUCCESS", "IDLE")],
+        1: [
+            ("r", "IDLE", "RUNNING"),
+            ("c", "IDLE", "SUCCESS"),
+            ("t", "IDLE", "RUNNING"),
+            ("a", "IDLE", "FAILURE"),
+            ("a", "FAILURE", "IDLE"),
+            ("c", "SUCCESS", "IDLE"),
+            ("c", "IDLE", "SUCCESS"),
+            ("a", "IDLE", "RUNNING"),
+            ("c", "SUCCESS", "IDLE"),
+        ],
+        2: [
+            ("c", "IDLE", "SUCCESS"),
+            ("a", "RUNNING", "SUCCESS"),
+            ("a", "SUCCESS", "IDLE"),
+            ("t", "RUNNING", "SUCCESS"),
+            ("c", "SUCCESS", "IDLE"),
+            ("t", "SUCCESS", "IDLE"),
+            ("r", "RUNNING", "SUCCESS"),
+            ("r", "SUCCESS", "IDLE"),
+        ],
     }
 
 
 def test_keep_running_until_failure() -> None:
     """Each SUCCESS resets the child and returns RUNNING; the FAILURE ends it."""
-    r = run(f'<KeepRunningUntilFailure name="k">{act("a")}</KeepRunningUntilFailure>',
-            {"a": [ok(), ok(1), fail()]})
+    r = run(
+        f'<KeepRunningUntilFailure name="k">{act("a")}</KeepRunningUntilFailure>',
+        {"a": [ok(), ok(1), fail()]},
+    )
     assert r.roots == ["RUNNING", "RUNNING", "RUNNING", "FAILURE"]
     assert r.ticks == {
         1: [("k", "IDLE", "RUNNING"), ("a", "IDLE", "SUCCESS"), ("a", "SUCCESS", "IDLE")],
         2: [("a", "IDLE", "RUNNING")],
         3: [("a", "RUNNING", "SUCCESS"), ("a", "SUCCESS", "IDLE")],
-        4: [("a", "IDLE", "FAILURE"), ("a", "FAILURE", "IDLE"), ("k", "RUNNING", "FAILURE"),
-            ("k", "FAILURE", "IDLE")],
+        4: [
+            ("a", "IDLE", "FAILURE"),
+            ("a", "FAILURE", "IDLE"),
+            ("k", "RUNNING", "FAILURE"),
+            ("k", "FAILURE", "IDLE"),
+        ],
     }
 
 
 def test_run_once_then_skips() -> None:
     """then_skip (default true): after its first completion RunOnce returns SKIPPED without
     ticking its child; being reset by its parent (o SUCCESS->IDLE) does not forget it."""
-    r = run(f'<Repeat name="rep" num_cycles="3"><Sequence name="q"><RunOnce name="o">{act("a")}'
-            f'</RunOnce>{act("b")}</Sequence></Repeat>', {"b": [ok(1)]})
+    r = run(
+        f'<Repeat name="rep" num_cycles="3"><Sequence name="q"><RunOnce name="o">{act("a")}'
+        f"</RunOnce>{act('b')}</Sequence></Repeat>",
+        {"b": [ok(1)]},
+    )
     assert r.roots == ["RUNNING", "RUNNING", "RUNNING", "SUCCESS"]
     assert r.ticks == {
-        1: [("rep", "IDLE", "RUNNING"), ("q", "IDLE", "RUNNING"), ("o", "IDLE", "RUNNING"),
-            ("a", "IDLE", "SUCCESS"), ("a", "SUCCESS", "IDLE"), ("o", "RUNNING", "SUCCESS"),
-            ("b", "IDLE", "RUNNING")],
-        2: [("b", "RUNNING", "SUCCESS"), ("o", "SUCCESS", "IDLE"), ("b", "SUCCESS", "IDLE"),
-            ("q", "RUNNING", "SUCCESS"), ("q", "SUCCESS", "IDLE"), ("q", "IDLE", "RUNNING"),
-            ("b", "IDLE", "RUNNING")],
-        3: [("b", "RUNNING", "SUCCESS"), ("b", "SUCCESS", "IDLE"), ("q", "RUNNING", "SUCCESS"),
-            ("q", "SUCCESS", "IDLE"), ("q", "IDLE", "RUNNING"), ("b", "IDLE", "RUNNING")],
-        4: [("b", "RUNNING", "SUCCESS"), ("b", "SUCCESS", "IDLE"), ("q", "RUNNING", "SUCCESS"),
-            ("q", "SUCCESS", "IDLE"), ("rep", "RUNNING", "SUCCESS"), ("rep", "SUCCESS", "IDLE")],
+        1: [
+            ("rep", "IDLE", "RUNNING"),
+            ("q", "IDLE", "RUNNING"),
+            ("o", "IDLE", "RUNNING"),
+            ("a", "IDLE", "SUCCESS"),
+            ("a", "SUCCESS", "IDLE"),
+            ("o", "RUNNING", "SUCCESS"),
+            ("b", "IDLE", "RUNNING"),
+        ],
+        2: [
+            ("b", "RUNNING", "SUCCESS"),
+            ("o", "SUCCESS", "IDLE"),
+            ("b", "SUCCESS", "IDLE"),
+            ("q", "RUNNING", "SUCCESS"),
+            ("q", "SUCCESS", "IDLE"),
+            ("q", "IDLE", "RUNNING"),
+            ("b", "IDLE", "RUNNING"),
+        ],
+        3: [
+            ("b", "RUNNING", "SUCCESS"),
+            ("b", "SUCCESS", "IDLE"),
+            ("q", "RUNNING", "SUCCESS"),
+            ("q", "SUCCESS", "IDLE"),
+            ("q", "IDLE", "RUNNING"),
+            ("b", "IDLE", "RUNNING"),
+        ],
+        4: [
+            ("b", "RUNNING", "SUCCESS"),
+            ("b", "SUCCESS", "IDLE"),
+            ("q", "RUNNING", "SUCCESS"),
+            ("q", "SUCCESS", "IDLE"),
+            ("rep", "RUNNING", "SUCCESS"),
+            ("rep", "SUCCESS", "IDLE"),
+        ],
     }
 
 
 def test_run_once_without_skip_returns_the_remembered_status() -> None:
     """then_skip=false: later ticks return the remembered SUCCESS (o IDLE->SUCCESS) and the child
     is never ticked again."""
-    r = run(f'<Repeat name="rep" num_cycles="3"><Sequence name="q">'
-            f'<RunOnce name="o" then_skip="false">{act("a")}</RunOnce>{act("b")}</Sequence>'
-            '</Repeat>', {"a": [ok(1)], "b": [ok(1)]})
+    r = run(
+        f'<Repeat name="rep" num_cycles="3"><Sequence name="q">'
+        f'<RunOnce name="o" then_skip="false">{act("a")}</RunOnce>{act("b")}</Sequence>'
+        "</Repeat>",
+        {"a": [ok(1)], "b": [ok(1)]},
+    )
     assert r.roots == ["RUNNING", "RUNNING", "RUNNING", "RUNNING", "SUCCESS"]
     assert r.ticks == {
-        1: [("rep", "IDLE", "RUNNING"), ("q", "IDLE", "RUNNING"), ("o", "IDLE", "RUNNING"),
-            ("a", "IDLE", "RUNNING")],
-        2: [("a", "RUNNING", "SUCCESS"), ("a", "SUCCESS", "IDLE"), ("o", "RUNNING", "SUCCESS"),
-            ("b", "IDLE", "RUNNING")],
-        3: [("b", "RUNNING", "SUCCESS"), ("o", "SUCCESS", "IDLE"), ("b", "SUCCESS", "IDLE"),
-            ("q", "RUNNING", "SUCCESS"), ("q", "SUCCESS", "IDLE"), ("q", "IDLE", "RUNNING"),
-            ("o", "IDLE", "SUCCESS"), ("b", "IDLE", "RUNNING")],
-        4: [("b", "RUNNING", "SUCCESS"), ("o", "SUCCESS", "IDLE"), ("b", "SUCCESS", "IDLE"),
-            ("q", "RUNNING", "SUCCESS"), ("q", "SUCCESS", "IDLE"), ("q", "IDLE", "RUNNING"),
-            ("o", "IDLE", "SUCCESS"), ("b", "IDLE", "RUNNING")],
-        5: [("b", "RUNNING", "SUCCESS"), ("o", "SUCCESS", "IDLE"), ("b", "SUCCESS", "IDLE"),
-            ("q", "RUNNING", "SUCCESS"), ("q", "SUCCESS", "IDLE"), ("rep", "RUNNING", "SUCCESS"),
-            ("rep", "SUCCESS", "IDLE")],
+        1: [
+            ("rep", "IDLE", "RUNNING"),
+            ("q", "IDLE", "RUNNING"),
+            ("o", "IDLE", "RUNNING"),
+            ("a", "IDLE", "RUNNING"),
+        ],
+        2: [
+            ("a", "RUNNING", "SUCCESS"),
+            ("a", "SUCCESS", "IDLE"),
+            ("o", "RUNNING", "SUCCESS"),
+            ("b", "IDLE", "RUNNING"),
+        ],
+        3: [
+            ("b", "RUNNING", "SUCCESS"),
+            ("o", "SUCCESS", "IDLE"),
+            ("b", "SUCCESS", "IDLE"),
+            ("q", "RUNNING", "SUCCESS"),
+            ("q", "SUCCESS", "IDLE"),
+            ("q", "IDLE", "RUNNING"),
+            ("o", "IDLE", "SUCCESS"),
+            ("b", "IDLE", "RUNNING"),
+        ],
+        4: [
+            ("b", "RUNNING", "SUCCESS"),
+            ("o", "SUCCESS", "IDLE"),
+            ("b", "SUCCESS", "IDLE"),
+            ("q", "RUNNING", "SUCCESS"),
+            ("q", "SUCCESS", "IDLE"),
+            ("q", "IDLE", "RUNNING"),
+            ("o", "IDLE", "SUCCESS"),
+            ("b", "IDLE", "RUNNING"),
+        ],
+        5: [
+            ("b", "RUNNING", "SUCCESS"),
+            ("o", "SUCCESS", "IDLE"),
+            ("b", "SUCCESS", "IDLE"),
+            ("q", "RUNNING", "SUCCESS"),
+            ("q", "SUCCESS", "IDLE"),
+            ("rep", "RUNNING", "SUCCESS"),
+            ("rep", "SUCCESS", "IDLE"),
+        ],
     }
 
 
 def test_run_once_halted_while_running_runs_again_but_halted_after_completion_does_not() -> None:
     """A halt while the child runs leaves RunOnce not done (the next tick restarts the child);
     once it completed, even ``Executor.halt()`` does not make it run again."""
-    tree, executor, log = build(xml(f'<RunOnce name="o">{act("a")}</RunOnce>'),
-                                {"a": [ok(1), ok(1)]})
+    tree, executor, log = build(
+        xml(f'<RunOnce name="o">{act("a")}</RunOnce>'), {"a": [ok(1), ok(1)]}
+    )
     assert executor.tick() is RUNNING
     executor.halt()
     assert [executor.tick(), executor.tick()] == [RUNNING, SUCCESS]
@@ -874,48 +1406,89 @@ def test_run_once_halted_while_running_runs_again_but_halted_after_completion_do
     assert [executor.tick(), executor.tick()] == [SKIPPED, SKIPPED]
     assert executor.behaviors[2].activations == 2
     assert collect(tree, executor, log).ticks == {
-        1: [("o", "IDLE", "RUNNING"), ("a", "IDLE", "RUNNING"), ("a", "RUNNING", "IDLE"),
-            ("o", "RUNNING", "IDLE")],
+        1: [
+            ("o", "IDLE", "RUNNING"),
+            ("a", "IDLE", "RUNNING"),
+            ("a", "RUNNING", "IDLE"),
+            ("o", "RUNNING", "IDLE"),
+        ],
         2: [("o", "IDLE", "RUNNING"), ("a", "IDLE", "RUNNING")],
-        3: [("a", "RUNNING", "SUCCESS"), ("a", "SUCCESS", "IDLE"), ("o", "RUNNING", "SUCCESS"),
-            ("o", "SUCCESS", "IDLE")],
+        3: [
+            ("a", "RUNNING", "SUCCESS"),
+            ("a", "SUCCESS", "IDLE"),
+            ("o", "RUNNING", "SUCCESS"),
+            ("o", "SUCCESS", "IDLE"),
+        ],
     }
 
 
 def test_precondition_if_and_else() -> None:
     """A true ``if`` ticks the child; a false one returns ``else`` (default FAILURE) without
     ticking it. Precondition never sets RUNNING itself."""
-    r = run(f'<Sequence name="top">{script("s", "x:=1")}'
-            f'<Precondition name="p1" if="x==1" else="FAILURE">{act("a")}</Precondition>'
-            f'<Precondition name="p2" if="x==2" else="SUCCESS">{act("b")}</Precondition>'
-            f'<Precondition name="p3" if="x==3">{act("c")}</Precondition></Sequence>')
+    r = run(
+        f'<Sequence name="top">{script("s", "x:=1")}'
+        f'<Precondition name="p1" if="x==1" else="FAILURE">{act("a")}</Precondition>'
+        f'<Precondition name="p2" if="x==2" else="SUCCESS">{act("b")}</Precondition>'
+        f'<Precondition name="p3" if="x==3">{act("c")}</Precondition></Sequence>'
+    )
     assert r.roots == ["FAILURE"]
     assert r.ticks == {
-        1: [("top", "IDLE", "RUNNING"), ("s", "IDLE", "SUCCESS"), ("a", "IDLE", "SUCCESS"),
-            ("a", "SUCCESS", "IDLE"), ("p1", "IDLE", "SUCCESS"), ("p2", "IDLE", "SUCCESS"),
-            ("p3", "IDLE", "FAILURE"), ("s", "SUCCESS", "IDLE"), ("p1", "SUCCESS", "IDLE"),
-            ("p2", "SUCCESS", "IDLE"), ("p3", "FAILURE", "IDLE"), ("top", "RUNNING", "FAILURE"),
-            ("top", "FAILURE", "IDLE")],
+        1: [
+            ("top", "IDLE", "RUNNING"),
+            ("s", "IDLE", "SUCCESS"),
+            ("a", "IDLE", "SUCCESS"),
+            ("a", "SUCCESS", "IDLE"),
+            ("p1", "IDLE", "SUCCESS"),
+            ("p2", "IDLE", "SUCCESS"),
+            ("p3", "IDLE", "FAILURE"),
+            ("s", "SUCCESS", "IDLE"),
+            ("p1", "SUCCESS", "IDLE"),
+            ("p2", "SUCCESS", "IDLE"),
+            ("p3", "FAILURE", "IDLE"),
+            ("top", "RUNNING", "FAILURE"),
+            ("top", "FAILURE", "IDLE"),
+        ],
     }
 
 
 def test_precondition_is_not_reevaluated_while_the_child_runs() -> None:
     """x becomes 2 while a runs: the Precondition keeps ticking a until it completes."""
-    r = run(f'<Sequence name="top">{script("s", "x:=1")}<Parallel name="p" success_count="2">'
-            f'<Precondition name="pc" if="x==1">{act("a")}</Precondition>'
-            f'<Sequence name="q">{act("b")}{script("s2", "x:=2")}</Sequence></Parallel></Sequence>',
-            {"a": [ok(2)], "b": [ok(1)]})
+    r = run(
+        f'<Sequence name="top">{script("s", "x:=1")}<Parallel name="p" success_count="2">'
+        f'<Precondition name="pc" if="x==1">{act("a")}</Precondition>'
+        f'<Sequence name="q">{act("b")}{script("s2", "x:=2")}</Sequence></Parallel></Sequence>',
+        {"a": [ok(2)], "b": [ok(1)]},
+    )
     assert r.roots == ["RUNNING", "RUNNING", "SUCCESS"]
     assert r.ticks == {
-        1: [("top", "IDLE", "RUNNING"), ("s", "IDLE", "SUCCESS"), ("p", "IDLE", "RUNNING"),
-            ("a", "IDLE", "RUNNING"), ("pc", "IDLE", "RUNNING"), ("q", "IDLE", "RUNNING"),
-            ("b", "IDLE", "RUNNING")],
-        2: [("b", "RUNNING", "SUCCESS"), ("s2", "IDLE", "SUCCESS"), ("b", "SUCCESS", "IDLE"),
-            ("s2", "SUCCESS", "IDLE"), ("q", "RUNNING", "SUCCESS")],
-        3: [("a", "RUNNING", "SUCCESS"), ("a", "SUCCESS", "IDLE"), ("pc", "RUNNING", "SUCCESS"),
-            ("pc", "SUCCESS", "IDLE"), ("q", "SUCCESS", "IDLE"), ("p", "RUNNING", "SUCCESS"),
-            ("s", "SUCCESS", "IDLE"), ("p", "SUCCESS", "IDLE"), ("top", "RUNNING", "SUCCESS"),
-            ("top", "SUCCESS", "IDLE")],
+        1: [
+            ("top", "IDLE", "RUNNING"),
+            ("s", "IDLE", "SUCCESS"),
+            ("p", "IDLE", "RUNNING"),
+            ("a", "IDLE", "RUNNING"),
+            ("pc", "IDLE", "RUNNING"),
+            ("q", "IDLE", "RUNNING"),
+            ("b", "IDLE", "RUNNING"),
+        ],
+        2: [
+            ("b", "RUNNING", "SUCCESS"),
+            ("s2", "IDLE", "SUCCESS"),
+            ("b", "SUCCESS", "IDLE"),
+            ("s2", "SUCCESS", "IDLE"),
+            ("q", "RUNNING", "SUCCESS"),
+        ],
+        3: [
+            ("a", "RUNNING", "SUCCESS"),
+            ("a", "SUCCESS", "IDLE"),
+            ("pc", "RUNNING", "SUCCESS"),
+            ("pc", "SUCCESS", "IDLE"),
+            ("q", "SUCCESS", "IDLE"),
+            ("p", "RUNNING", "SUCCESS"),
+            ("s", "SUCCESS", "IDLE"),
+            ("p", "SUCCESS", "IDLE"),
+            ("top", "RUNNING", "SUCCESS"),
+            ("top", "SUCCESS", "IDLE"),
+        ],
     }
 
 
@@ -926,8 +1499,12 @@ def test_delay_on_the_simulated_clock() -> None:
     assert r.roots == ["RUNNING", "RUNNING", "RUNNING", "SUCCESS"]
     assert r.ticks == {
         1: [("d", "IDLE", "RUNNING")],
-        4: [("a", "IDLE", "SUCCESS"), ("a", "SUCCESS", "IDLE"), ("d", "RUNNING", "SUCCESS"),
-            ("d", "SUCCESS", "IDLE")],
+        4: [
+            ("a", "IDLE", "SUCCESS"),
+            ("a", "SUCCESS", "IDLE"),
+            ("d", "RUNNING", "SUCCESS"),
+            ("d", "SUCCESS", "IDLE"),
+        ],
     }
 
 
@@ -948,8 +1525,12 @@ def test_timeout_passes_a_result_in_time() -> None:
     assert r.roots == ["RUNNING", "RUNNING", "FAILURE"]
     assert r.ticks == {
         1: [("t", "IDLE", "RUNNING"), ("a", "IDLE", "RUNNING")],
-        3: [("a", "RUNNING", "FAILURE"), ("a", "FAILURE", "IDLE"), ("t", "RUNNING", "FAILURE"),
-            ("t", "FAILURE", "IDLE")],
+        3: [
+            ("a", "RUNNING", "FAILURE"),
+            ("a", "FAILURE", "IDLE"),
+            ("t", "RUNNING", "FAILURE"),
+            ("t", "FAILURE", "IDLE"),
+        ],
     }
 
 
@@ -977,127 +1558,240 @@ def test_sleep_is_halted_by_a_timeout() -> None:
 def test_skip_if_emits_no_transition() -> None:
     """A skipped node (``_skipIf`` true) is not ticked and logs nothing; b (``_skipIf`` false)
     runs normally."""
-    r = run(f'<Sequence name="q">{script("s", "x:=1")}{act("a", _skipIf="x==1")}'
-            f'{act("b", _skipIf="x==2")}</Sequence>')
+    r = run(
+        f'<Sequence name="q">{script("s", "x:=1")}{act("a", _skipIf="x==1")}'
+        f"{act('b', _skipIf='x==2')}</Sequence>"
+    )
     assert r.roots == ["SUCCESS"]
     assert r.ticks == {
-        1: [("q", "IDLE", "RUNNING"), ("s", "IDLE", "SUCCESS"), ("b", "IDLE", "SUCCESS"),
-            ("s", "SUCCESS", "IDLE"), ("b", "SUCCESS", "IDLE"), ("q", "RUNNING", "SUCCESS"),
-            ("q", "SUCCESS", "IDLE")],
+        1: [
+            ("q", "IDLE", "RUNNING"),
+            ("s", "IDLE", "SUCCESS"),
+            ("b", "IDLE", "SUCCESS"),
+            ("s", "SUCCESS", "IDLE"),
+            ("b", "SUCCESS", "IDLE"),
+            ("q", "RUNNING", "SUCCESS"),
+            ("q", "SUCCESS", "IDLE"),
+        ],
     }
 
 
 def test_failure_if_and_success_if_replace_the_tick_when_idle() -> None:
     """``_successIf`` true: a logs IDLE->SUCCESS without being ticked. ``_failureIf`` is checked
     first: b fails although its ``_successIf`` is true too."""
-    r = run(f'<Sequence name="q">{script("s", "x:=1")}{act("a", _successIf="x==1")}'
-            f'{act("b", _failureIf="x==1", _successIf="true")}</Sequence>')
+    r = run(
+        f'<Sequence name="q">{script("s", "x:=1")}{act("a", _successIf="x==1")}'
+        f"{act('b', _failureIf='x==1', _successIf='true')}</Sequence>"
+    )
     assert r.roots == ["FAILURE"]
     assert r.ticks == {
-        1: [("q", "IDLE", "RUNNING"), ("s", "IDLE", "SUCCESS"), ("a", "IDLE", "SUCCESS"),
-            ("b", "IDLE", "FAILURE"), ("s", "SUCCESS", "IDLE"), ("a", "SUCCESS", "IDLE"),
-            ("b", "FAILURE", "IDLE"), ("q", "RUNNING", "FAILURE"), ("q", "FAILURE", "IDLE")],
+        1: [
+            ("q", "IDLE", "RUNNING"),
+            ("s", "IDLE", "SUCCESS"),
+            ("a", "IDLE", "SUCCESS"),
+            ("b", "IDLE", "FAILURE"),
+            ("s", "SUCCESS", "IDLE"),
+            ("a", "SUCCESS", "IDLE"),
+            ("b", "FAILURE", "IDLE"),
+            ("q", "RUNNING", "FAILURE"),
+            ("q", "FAILURE", "IDLE"),
+        ],
     }
     assert r.executor.behaviors[r.tree.find("a")[0].uid].activations == 0
 
 
 def test_failure_if_is_not_checked_while_running() -> None:
     """x becomes 1 while a runs: ``_failureIf`` is only checked from IDLE, a completes normally."""
-    r = run(f'<Sequence name="top">{script("s", "x:=0")}<Parallel name="p" success_count="2">'
-            f'{act("a", _failureIf="x==1")}<Sequence name="q">{act("b")}{script("s2", "x:=1")}'
-            '</Sequence></Parallel></Sequence>', {"a": [ok(3)], "b": [ok(1)]})
+    r = run(
+        f'<Sequence name="top">{script("s", "x:=0")}<Parallel name="p" success_count="2">'
+        f'{act("a", _failureIf="x==1")}<Sequence name="q">{act("b")}{script("s2", "x:=1")}'
+        "</Sequence></Parallel></Sequence>",
+        {"a": [ok(3)], "b": [ok(1)]},
+    )
     assert r.roots == ["RUNNING", "RUNNING", "RUNNING", "SUCCESS"]
     assert r.ticks == {
-        1: [("top", "IDLE", "RUNNING"), ("s", "IDLE", "SUCCESS"), ("p", "IDLE", "RUNNING"),
-            ("a", "IDLE", "RUNNING"), ("q", "IDLE", "RUNNING"), ("b", "IDLE", "RUNNING")],
-        2: [("b", "RUNNING", "SUCCESS"), ("s2", "IDLE", "SUCCESS"), ("b", "SUCCESS", "IDLE"),
-            ("s2", "SUCCESS", "IDLE"), ("q", "RUNNING", "SUCCESS")],
-        4: [("a", "RUNNING", "SUCCESS"), ("a", "SUCCESS", "IDLE"), ("q", "SUCCESS", "IDLE"),
-            ("p", "RUNNING", "SUCCESS"), ("s", "SUCCESS", "IDLE"), ("p", "SUCCESS", "IDLE"),
-            ("top", "RUNNING", "SUCCESS"), ("top", "SUCCESS", "IDLE")],
+        1: [
+            ("top", "IDLE", "RUNNING"),
+            ("s", "IDLE", "SUCCESS"),
+            ("p", "IDLE", "RUNNING"),
+            ("a", "IDLE", "RUNNING"),
+            ("q", "IDLE", "RUNNING"),
+            ("b", "IDLE", "RUNNING"),
+        ],
+        2: [
+            ("b", "RUNNING", "SUCCESS"),
+            ("s2", "IDLE", "SUCCESS"),
+            ("b", "SUCCESS", "IDLE"),
+            ("s2", "SUCCESS", "IDLE"),
+            ("q", "RUNNING", "SUCCESS"),
+        ],
+        4: [
+            ("a", "RUNNING", "SUCCESS"),
+            ("a", "SUCCESS", "IDLE"),
+            ("q", "SUCCESS", "IDLE"),
+            ("p", "RUNNING", "SUCCESS"),
+            ("s", "SUCCESS", "IDLE"),
+            ("p", "SUCCESS", "IDLE"),
+            ("top", "RUNNING", "SUCCESS"),
+            ("top", "SUCCESS", "IDLE"),
+        ],
     }
 
 
 def test_skip_if_is_not_checked_while_running() -> None:
     """Like ``_failureIf``, ``_skipIf`` is only checked from IDLE."""
-    r = run(f'<Sequence name="top">{script("s", "x:=0")}<Parallel name="p" success_count="2">'
-            f'{act("a", _skipIf="x==1")}<Sequence name="q">{act("b")}{script("s2", "x:=1")}'
-            '</Sequence></Parallel></Sequence>', {"a": [ok(3)], "b": [ok(1)]})
+    r = run(
+        f'<Sequence name="top">{script("s", "x:=0")}<Parallel name="p" success_count="2">'
+        f'{act("a", _skipIf="x==1")}<Sequence name="q">{act("b")}{script("s2", "x:=1")}'
+        "</Sequence></Parallel></Sequence>",
+        {"a": [ok(3)], "b": [ok(1)]},
+    )
     assert r.roots == ["RUNNING", "RUNNING", "RUNNING", "SUCCESS"]
     assert r.ticks == {
-        1: [("top", "IDLE", "RUNNING"), ("s", "IDLE", "SUCCESS"), ("p", "IDLE", "RUNNING"),
-            ("a", "IDLE", "RUNNING"), ("q", "IDLE", "RUNNING"), ("b", "IDLE", "RUNNING")],
-        2: [("b", "RUNNING", "SUCCESS"), ("s2", "IDLE", "SUCCESS"), ("b", "SUCCESS", "IDLE"),
-            ("s2", "SUCCESS", "IDLE"), ("q", "RUNNING", "SUCCESS")],
-        4: [("a", "RUNNING", "SUCCESS"), ("a", "SUCCESS", "IDLE"), ("q", "SUCCESS", "IDLE"),
-            ("p", "RUNNING", "SUCCESS"), ("s", "SUCCESS", "IDLE"), ("p", "SUCCESS", "IDLE"),
-            ("top", "RUNNING", "SUCCESS"), ("top", "SUCCESS", "IDLE")],
+        1: [
+            ("top", "IDLE", "RUNNING"),
+            ("s", "IDLE", "SUCCESS"),
+            ("p", "IDLE", "RUNNING"),
+            ("a", "IDLE", "RUNNING"),
+            ("q", "IDLE", "RUNNING"),
+            ("b", "IDLE", "RUNNING"),
+        ],
+        2: [
+            ("b", "RUNNING", "SUCCESS"),
+            ("s2", "IDLE", "SUCCESS"),
+            ("b", "SUCCESS", "IDLE"),
+            ("s2", "SUCCESS", "IDLE"),
+            ("q", "RUNNING", "SUCCESS"),
+        ],
+        4: [
+            ("a", "RUNNING", "SUCCESS"),
+            ("a", "SUCCESS", "IDLE"),
+            ("q", "SUCCESS", "IDLE"),
+            ("p", "RUNNING", "SUCCESS"),
+            ("s", "SUCCESS", "IDLE"),
+            ("p", "SUCCESS", "IDLE"),
+            ("top", "RUNNING", "SUCCESS"),
+            ("top", "SUCCESS", "IDLE"),
+        ],
     }
 
 
 def test_while_false_halts_a_running_node_and_runs_on_halted() -> None:
     """``_while`` is re-evaluated while RUNNING: when x becomes 1, a is halted (RUNNING->IDLE),
     ``_onHalted`` runs, and a is skipped from then on (the Parallel keeps RUNNING)."""
-    r = run(f'<Sequence name="top">{script("s", "x:=0")}<Parallel name="p" success_count="2">'
-            f'{act("a", _while="x==0", _onHalted="h:=1")}<Sequence name="q">{act("b")}'
-            f'{script("s2", "x:=1")}</Sequence></Parallel></Sequence>',
-            {"a": [ok(3)], "b": [ok(1)]},
-            max_ticks=5)
+    r = run(
+        f'<Sequence name="top">{script("s", "x:=0")}<Parallel name="p" success_count="2">'
+        f'{act("a", _while="x==0", _onHalted="h:=1")}<Sequence name="q">{act("b")}'
+        f"{script('s2', 'x:=1')}</Sequence></Parallel></Sequence>",
+        {"a": [ok(3)], "b": [ok(1)]},
+        max_ticks=5,
+    )
     assert r.roots == ["RUNNING", "RUNNING", "RUNNING", "RUNNING", "RUNNING"]
     assert r.ticks == {
-        1: [("top", "IDLE", "RUNNING"), ("s", "IDLE", "SUCCESS"), ("p", "IDLE", "RUNNING"),
-            ("a", "IDLE", "RUNNING"), ("q", "IDLE", "RUNNING"), ("b", "IDLE", "RUNNING")],
-        2: [("b", "RUNNING", "SUCCESS"), ("s2", "IDLE", "SUCCESS"), ("b", "SUCCESS", "IDLE"),
-            ("s2", "SUCCESS", "IDLE"), ("q", "RUNNING", "SUCCESS")],
+        1: [
+            ("top", "IDLE", "RUNNING"),
+            ("s", "IDLE", "SUCCESS"),
+            ("p", "IDLE", "RUNNING"),
+            ("a", "IDLE", "RUNNING"),
+            ("q", "IDLE", "RUNNING"),
+            ("b", "IDLE", "RUNNING"),
+        ],
+        2: [
+            ("b", "RUNNING", "SUCCESS"),
+            ("s2", "IDLE", "SUCCESS"),
+            ("b", "SUCCESS", "IDLE"),
+            ("s2", "SUCCESS", "IDLE"),
+            ("q", "RUNNING", "SUCCESS"),
+        ],
         3: [("a", "RUNNING", "IDLE")],
-        5: [("s", "SUCCESS", "IDLE"), ("q", "SUCCESS", "IDLE"), ("p", "RUNNING", "IDLE"),
-            ("top", "RUNNING", "IDLE")],
+        5: [
+            ("s", "SUCCESS", "IDLE"),
+            ("q", "SUCCESS", "IDLE"),
+            ("p", "RUNNING", "IDLE"),
+            ("top", "RUNNING", "IDLE"),
+        ],
     }
     assert r.board["h"] == 1
 
 
 def test_while_false_halts_a_running_control_node() -> None:
     """``_while`` on a Sequence halts it and its running child."""
-    r = run(f'<Sequence name="top">{script("s", "x:=0")}<Parallel name="p" success_count="2">'
-            f'<Sequence name="inner" _while="x==0">{act("a")}{act("c")}</Sequence>'
-            f'<Sequence name="q">{act("b")}{script("s2", "x:=1")}</Sequence></Parallel></Sequence>',
-            {"a": [ok(3)], "b": [ok(1)]}, max_ticks=4)
+    r = run(
+        f'<Sequence name="top">{script("s", "x:=0")}<Parallel name="p" success_count="2">'
+        f'<Sequence name="inner" _while="x==0">{act("a")}{act("c")}</Sequence>'
+        f'<Sequence name="q">{act("b")}{script("s2", "x:=1")}</Sequence></Parallel></Sequence>',
+        {"a": [ok(3)], "b": [ok(1)]},
+        max_ticks=4,
+    )
     assert r.roots == ["RUNNING", "RUNNING", "RUNNING", "RUNNING"]
     assert r.ticks == {
-        1: [("top", "IDLE", "RUNNING"), ("s", "IDLE", "SUCCESS"), ("p", "IDLE", "RUNNING"),
-            ("inner", "IDLE", "RUNNING"), ("a", "IDLE", "RUNNING"), ("q", "IDLE", "RUNNING"),
-            ("b", "IDLE", "RUNNING")],
-        2: [("b", "RUNNING", "SUCCESS"), ("s2", "IDLE", "SUCCESS"), ("b", "SUCCESS", "IDLE"),
-            ("s2", "SUCCESS", "IDLE"), ("q", "RUNNING", "SUCCESS")],
+        1: [
+            ("top", "IDLE", "RUNNING"),
+            ("s", "IDLE", "SUCCESS"),
+            ("p", "IDLE", "RUNNING"),
+            ("inner", "IDLE", "RUNNING"),
+            ("a", "IDLE", "RUNNING"),
+            ("q", "IDLE", "RUNNING"),
+            ("b", "IDLE", "RUNNING"),
+        ],
+        2: [
+            ("b", "RUNNING", "SUCCESS"),
+            ("s2", "IDLE", "SUCCESS"),
+            ("b", "SUCCESS", "IDLE"),
+            ("s2", "SUCCESS", "IDLE"),
+            ("q", "RUNNING", "SUCCESS"),
+        ],
         3: [("a", "RUNNING", "IDLE"), ("inner", "RUNNING", "IDLE")],
-        4: [("s", "SUCCESS", "IDLE"), ("q", "SUCCESS", "IDLE"), ("p", "RUNNING", "IDLE"),
-            ("top", "RUNNING", "IDLE")],
+        4: [
+            ("s", "SUCCESS", "IDLE"),
+            ("q", "SUCCESS", "IDLE"),
+            ("p", "RUNNING", "IDLE"),
+            ("top", "RUNNING", "IDLE"),
+        ],
     }
 
 
 def test_while_false_when_idle_skips() -> None:
     """``_while`` false from IDLE: skipped, no transition."""
-    r = run(f'<Sequence name="q">{script("s", "x:=1")}{act("a", _while="x==0")}{act("b")}'
-            '</Sequence>')
+    r = run(
+        f'<Sequence name="q">{script("s", "x:=1")}{act("a", _while="x==0")}{act("b")}</Sequence>'
+    )
     assert r.roots == ["SUCCESS"]
     assert r.ticks == {
-        1: [("q", "IDLE", "RUNNING"), ("s", "IDLE", "SUCCESS"), ("b", "IDLE", "SUCCESS"),
-            ("s", "SUCCESS", "IDLE"), ("b", "SUCCESS", "IDLE"), ("q", "RUNNING", "SUCCESS"),
-            ("q", "SUCCESS", "IDLE")],
+        1: [
+            ("q", "IDLE", "RUNNING"),
+            ("s", "IDLE", "SUCCESS"),
+            ("b", "IDLE", "SUCCESS"),
+            ("s", "SUCCESS", "IDLE"),
+            ("b", "SUCCESS", "IDLE"),
+            ("q", "RUNNING", "SUCCESS"),
+            ("q", "SUCCESS", "IDLE"),
+        ],
     }
 
 
 def test_post_conditions_run_on_completion() -> None:
     """``_onSuccess``/``_onFailure`` run first, then ``_post``: n = (0 + 1) * 10 = 10 after a,
     then 10 + 5 = 15 after b, and m = 15."""
-    r = run(f'<Sequence name="q">{script("s", "n:=0")}'
-            f'{act("a", _onSuccess="n:=n+1", _post="n:=n*10")}'
-            f'{act("b", _onFailure="n:=n+5", _post="m:=n")}</Sequence>', {"b": [fail()]})
+    r = run(
+        f'<Sequence name="q">{script("s", "n:=0")}'
+        f"{act('a', _onSuccess='n:=n+1', _post='n:=n*10')}"
+        f"{act('b', _onFailure='n:=n+5', _post='m:=n')}</Sequence>",
+        {"b": [fail()]},
+    )
     assert r.roots == ["FAILURE"]
     assert r.ticks == {
-        1: [("q", "IDLE", "RUNNING"), ("s", "IDLE", "SUCCESS"), ("a", "IDLE", "SUCCESS"),
-            ("b", "IDLE", "FAILURE"), ("s", "SUCCESS", "IDLE"), ("a", "SUCCESS", "IDLE"),
-            ("b", "FAILURE", "IDLE"), ("q", "RUNNING", "FAILURE"), ("q", "FAILURE", "IDLE")],
+        1: [
+            ("q", "IDLE", "RUNNING"),
+            ("s", "IDLE", "SUCCESS"),
+            ("a", "IDLE", "SUCCESS"),
+            ("b", "IDLE", "FAILURE"),
+            ("s", "SUCCESS", "IDLE"),
+            ("a", "SUCCESS", "IDLE"),
+            ("b", "FAILURE", "IDLE"),
+            ("q", "RUNNING", "FAILURE"),
+            ("q", "FAILURE", "IDLE"),
+        ],
     }
     assert (r.board["n"], r.board["m"]) == (15, 15)
 
@@ -1118,22 +1812,41 @@ def test_subtree_remapping_literals_and_outputs() -> None:
     """``x="{v}"`` maps the inner x to the outer v, ``lit="7"`` is a literal in the subtree's own
     blackboard, ``y="{out}"`` writes back. The SubTree node stays SUCCESS until its parent
     resets it."""
-    r = run(f'<Sequence name="top">{script("s", "v:=42")}'
-            '<SubTree ID="Sub" name="st" x="{v}" lit="7" y="{out}"/>'
-            '<ScriptCondition name="post" code="out == 43"/></Sequence>', {"ia": [ok(1)]},
-            trees='<BehaviorTree ID="Sub"><Sequence name="inner">'
-                  '<ScriptCondition name="chk" code="x == 42 &amp;&amp; lit == 7"/>'
-                  f'{script("w", "y := x + 1")}{act("ia")}</Sequence></BehaviorTree>')
+    r = run(
+        f'<Sequence name="top">{script("s", "v:=42")}'
+        '<SubTree ID="Sub" name="st" x="{v}" lit="7" y="{out}"/>'
+        '<ScriptCondition name="post" code="out == 43"/></Sequence>',
+        {"ia": [ok(1)]},
+        trees='<BehaviorTree ID="Sub"><Sequence name="inner">'
+        '<ScriptCondition name="chk" code="x == 42 &amp;&amp; lit == 7"/>'
+        f"{script('w', 'y := x + 1')}{act('ia')}</Sequence></BehaviorTree>",
+    )
     assert r.roots == ["RUNNING", "SUCCESS"]
     assert r.ticks == {
-        1: [("top", "IDLE", "RUNNING"), ("s", "IDLE", "SUCCESS"), ("st", "IDLE", "RUNNING"),
-            ("inner", "IDLE", "RUNNING"), ("chk", "IDLE", "SUCCESS"), ("w", "IDLE", "SUCCESS"),
-            ("ia", "IDLE", "RUNNING")],
-        2: [("ia", "RUNNING", "SUCCESS"), ("chk", "SUCCESS", "IDLE"), ("w", "SUCCESS", "IDLE"),
-            ("ia", "SUCCESS", "IDLE"), ("inner", "RUNNING", "SUCCESS"),
-            ("inner", "SUCCESS", "IDLE"), ("st", "RUNNING", "SUCCESS"),
-            ("post", "IDLE", "SUCCESS"), ("s", "SUCCESS", "IDLE"), ("st", "SUCCESS", "IDLE"),
-            ("post", "SUCCESS", "IDLE"), ("top", "RUNNING", "SUCCESS"), ("top", "SUCCESS", "IDLE")],
+        1: [
+            ("top", "IDLE", "RUNNING"),
+            ("s", "IDLE", "SUCCESS"),
+            ("st", "IDLE", "RUNNING"),
+            ("inner", "IDLE", "RUNNING"),
+            ("chk", "IDLE", "SUCCESS"),
+            ("w", "IDLE", "SUCCESS"),
+            ("ia", "IDLE", "RUNNING"),
+        ],
+        2: [
+            ("ia", "RUNNING", "SUCCESS"),
+            ("chk", "SUCCESS", "IDLE"),
+            ("w", "SUCCESS", "IDLE"),
+            ("ia", "SUCCESS", "IDLE"),
+            ("inner", "RUNNING", "SUCCESS"),
+            ("inner", "SUCCESS", "IDLE"),
+            ("st", "RUNNING", "SUCCESS"),
+            ("post", "IDLE", "SUCCESS"),
+            ("s", "SUCCESS", "IDLE"),
+            ("st", "SUCCESS", "IDLE"),
+            ("post", "SUCCESS", "IDLE"),
+            ("top", "RUNNING", "SUCCESS"),
+            ("top", "SUCCESS", "IDLE"),
+        ],
     }
     assert r.board == {"v": 42, "out": 43}
 
@@ -1141,52 +1854,92 @@ def test_subtree_remapping_literals_and_outputs() -> None:
 def test_subtree_autoremap() -> None:
     """``_autoremap="true"``: keys missing in the subtree resolve in the parent (the SubTree's
     name defaults to its ID)."""
-    r = run(f'<Sequence name="top">{script("s", "x:=42; lit:=7")}'
-            '<SubTree ID="Sub" _autoremap="true"/>'
-            '<ScriptCondition name="post" code="y == 43"/></Sequence>',
-            trees='<BehaviorTree ID="Sub"><Sequence name="inner">'
-                  '<ScriptCondition name="chk" code="x == 42 &amp;&amp; lit == 7"/>'
-                  f'{script("w", "y := x + 1")}</Sequence></BehaviorTree>')
+    r = run(
+        f'<Sequence name="top">{script("s", "x:=42; lit:=7")}'
+        '<SubTree ID="Sub" _autoremap="true"/>'
+        '<ScriptCondition name="post" code="y == 43"/></Sequence>',
+        trees='<BehaviorTree ID="Sub"><Sequence name="inner">'
+        '<ScriptCondition name="chk" code="x == 42 &amp;&amp; lit == 7"/>'
+        f"{script('w', 'y := x + 1')}</Sequence></BehaviorTree>",
+    )
     assert r.roots == ["SUCCESS"]
     assert r.ticks == {
-        1: [("top", "IDLE", "RUNNING"), ("s", "IDLE", "SUCCESS"), ("Sub", "IDLE", "RUNNING"),
-            ("inner", "IDLE", "RUNNING"), ("chk", "IDLE", "SUCCESS"), ("w", "IDLE", "SUCCESS"),
-            ("chk", "SUCCESS", "IDLE"), ("w", "SUCCESS", "IDLE"), ("inner", "RUNNING", "SUCCESS"),
-            ("inner", "SUCCESS", "IDLE"), ("Sub", "RUNNING", "SUCCESS"),
-            ("post", "IDLE", "SUCCESS"), ("s", "SUCCESS", "IDLE"), ("Sub", "SUCCESS", "IDLE"),
-            ("post", "SUCCESS", "IDLE"), ("top", "RUNNING", "SUCCESS"), ("top", "SUCCESS", "IDLE")],
+        1: [
+            ("top", "IDLE", "RUNNING"),
+            ("s", "IDLE", "SUCCESS"),
+            ("Sub", "IDLE", "RUNNING"),
+            ("inner", "IDLE", "RUNNING"),
+            ("chk", "IDLE", "SUCCESS"),
+            ("w", "IDLE", "SUCCESS"),
+            ("chk", "SUCCESS", "IDLE"),
+            ("w", "SUCCESS", "IDLE"),
+            ("inner", "RUNNING", "SUCCESS"),
+            ("inner", "SUCCESS", "IDLE"),
+            ("Sub", "RUNNING", "SUCCESS"),
+            ("post", "IDLE", "SUCCESS"),
+            ("s", "SUCCESS", "IDLE"),
+            ("Sub", "SUCCESS", "IDLE"),
+            ("post", "SUCCESS", "IDLE"),
+            ("top", "RUNNING", "SUCCESS"),
+            ("top", "SUCCESS", "IDLE"),
+        ],
     }
 
 
 def test_subtree_root_blackboard_keys() -> None:
     """``@key`` reads and writes the root blackboard from inside an isolated subtree."""
-    r = run(f'<Sequence name="top">{script("s", "g:=1")}<SubTree ID="Sub" name="st"/>'
-            '<ScriptCondition name="post" code="g == 2 &amp;&amp; h == 3"/></Sequence>',
-            trees=f'<BehaviorTree ID="Sub">{script("w", "@g := @g + 1; @h := 3")}</BehaviorTree>')
+    r = run(
+        f'<Sequence name="top">{script("s", "g:=1")}<SubTree ID="Sub" name="st"/>'
+        '<ScriptCondition name="post" code="g == 2 &amp;&amp; h == 3"/></Sequence>',
+        trees=f'<BehaviorTree ID="Sub">{script("w", "@g := @g + 1; @h := 3")}</BehaviorTree>',
+    )
     assert r.roots == ["SUCCESS"]
     assert r.ticks == {
-        1: [("top", "IDLE", "RUNNING"), ("s", "IDLE", "SUCCESS"), ("st", "IDLE", "RUNNING"),
-            ("w", "IDLE", "SUCCESS"), ("w", "SUCCESS", "IDLE"), ("st", "RUNNING", "SUCCESS"),
-            ("post", "IDLE", "SUCCESS"), ("s", "SUCCESS", "IDLE"), ("st", "SUCCESS", "IDLE"),
-            ("post", "SUCCESS", "IDLE"), ("top", "RUNNING", "SUCCESS"), ("top", "SUCCESS", "IDLE")],
+        1: [
+            ("top", "IDLE", "RUNNING"),
+            ("s", "IDLE", "SUCCESS"),
+            ("st", "IDLE", "RUNNING"),
+            ("w", "IDLE", "SUCCESS"),
+            ("w", "SUCCESS", "IDLE"),
+            ("st", "RUNNING", "SUCCESS"),
+            ("post", "IDLE", "SUCCESS"),
+            ("s", "SUCCESS", "IDLE"),
+            ("st", "SUCCESS", "IDLE"),
+            ("post", "SUCCESS", "IDLE"),
+            ("top", "RUNNING", "SUCCESS"),
+            ("top", "SUCCESS", "IDLE"),
+        ],
     }
     assert r.board == {"g": 2, "h": 3}
 
 
 def test_subtree_failure_and_halt() -> None:
     """A ReactiveSequence halts the running SubTree: the halt goes down to the inner leaf first."""
-    r = run(f'<ReactiveSequence name="top">{cond("c")}<SubTree ID="Sub" name="st"/>'
-            '</ReactiveSequence>',
-            {"c": [ok(), fail()], "ia": [ok(3)]},
-            trees=f'<BehaviorTree ID="Sub"><Sequence name="inner">{act("ia")}</Sequence>'
-                  '</BehaviorTree>')
+    r = run(
+        f'<ReactiveSequence name="top">{cond("c")}<SubTree ID="Sub" name="st"/></ReactiveSequence>',
+        {"c": [ok(), fail()], "ia": [ok(3)]},
+        trees=f'<BehaviorTree ID="Sub"><Sequence name="inner">{act("ia")}</Sequence>'
+        "</BehaviorTree>",
+    )
     assert r.roots == ["RUNNING", "FAILURE"]
     assert r.ticks == {
-        1: [("top", "IDLE", "RUNNING"), ("c", "IDLE", "SUCCESS"), ("st", "IDLE", "RUNNING"),
-            ("inner", "IDLE", "RUNNING"), ("ia", "IDLE", "RUNNING"), ("c", "SUCCESS", "IDLE")],
-        2: [("c", "IDLE", "FAILURE"), ("c", "FAILURE", "IDLE"), ("ia", "RUNNING", "IDLE"),
-            ("inner", "RUNNING", "IDLE"), ("st", "RUNNING", "IDLE"),
-            ("top", "RUNNING", "FAILURE"), ("top", "FAILURE", "IDLE")],
+        1: [
+            ("top", "IDLE", "RUNNING"),
+            ("c", "IDLE", "SUCCESS"),
+            ("st", "IDLE", "RUNNING"),
+            ("inner", "IDLE", "RUNNING"),
+            ("ia", "IDLE", "RUNNING"),
+            ("c", "SUCCESS", "IDLE"),
+        ],
+        2: [
+            ("c", "IDLE", "FAILURE"),
+            ("c", "FAILURE", "IDLE"),
+            ("ia", "RUNNING", "IDLE"),
+            ("inner", "RUNNING", "IDLE"),
+            ("st", "RUNNING", "IDLE"),
+            ("top", "RUNNING", "FAILURE"),
+            ("top", "FAILURE", "IDLE"),
+        ],
     }
 
 
@@ -1194,29 +1947,44 @@ def test_subtree_failure_and_halt() -> None:
 def test_v3_subtree_remaps_raw_keys_and_is_named_by_its_id() -> None:
     """v3 (no BTCPP_format): ``inner="outer"`` names the parent key directly, the instance
     name is forced to the ID, and the subtree's own entries stay in its scope."""
-    r = run(f'<Sequence name="top">{script("s", "outer:=5")}<SubTree ID="Sub" name="ignored" '
-            'inner="outer"/></Sequence>', fmt=None, oracle=False,
-            trees=f'<BehaviorTree ID="Sub">{script("w", "inner := inner + 1; mine := 1")}'
-                  '</BehaviorTree>')
+    r = run(
+        f'<Sequence name="top">{script("s", "outer:=5")}<SubTree ID="Sub" name="ignored" '
+        'inner="outer"/></Sequence>',
+        fmt=None,
+        oracle=False,
+        trees=f'<BehaviorTree ID="Sub">{script("w", "inner := inner + 1; mine := 1")}'
+        "</BehaviorTree>",
+    )
     assert r.roots == ["SUCCESS"]
     assert r.executor.blackboards() == {"": {"outer": 6}, "Sub": {"mine": 1}}
     assert [(n.uid, n.name, n.path) for n in r.tree] == [
-        (1, "top", "top"), (2, "s", "s"), (3, "Sub", "Sub"), (4, "w", "Sub/w")]
+        (1, "top", "top"),
+        (2, "s", "s"),
+        (3, "Sub", "Sub"),
+        (4, "w", "Sub/w"),
+    ]
 
 
 def test_v3_shared_blackboard_and_subtree_plus() -> None:
     """v3 ``__shared_blackboard="true"`` shares the parent's entries; ``<SubTreePlus>`` takes
     ``{key}`` remappings, literals and ``__autoremap``."""
     sub = f'<BehaviorTree ID="Sub">{script("w", "outer := outer + 1; mine := 1")}</BehaviorTree>'
-    shared = run(f'<Sequence name="top">{script("s", "outer:=5")}'
-                 '<SubTree ID="Sub" __shared_blackboard="true"/></Sequence>',
-                 trees=sub, fmt=None, oracle=False)
+    shared = run(
+        f'<Sequence name="top">{script("s", "outer:=5")}'
+        '<SubTree ID="Sub" __shared_blackboard="true"/></Sequence>',
+        trees=sub,
+        fmt=None,
+        oracle=False,
+    )
     assert shared.executor.blackboards() == {"": {"outer": 6, "mine": 1}}
-    plus = run(f'<Sequence name="top">{script("s", "outer:=5; other:=1")}'
-               '<SubTreePlus ID="Plus" inner="{outer}" lit="3" __autoremap="true"/></Sequence>',
-               trees='<BehaviorTree ID="Plus">'
-                     f'{script("w", "inner := inner + lit + other")}</BehaviorTree>',
-               fmt=None, oracle=False)
+    plus = run(
+        f'<Sequence name="top">{script("s", "outer:=5; other:=1")}'
+        '<SubTreePlus ID="Plus" inner="{outer}" lit="3" __autoremap="true"/></Sequence>',
+        trees='<BehaviorTree ID="Plus">'
+        f"{script('w', 'inner := inner + lit + other')}</BehaviorTree>",
+        fmt=None,
+        oracle=False,
+    )
     assert plus.roots == ["SUCCESS"]
     assert plus.board == {"outer": 9, "other": 1}
 
@@ -1224,59 +1992,70 @@ def test_v3_shared_blackboard_and_subtree_plus() -> None:
 def test_subtree_same_key_remapping_and_literal_types() -> None:
     """``x="{=}"`` maps x to the parent's x; literals are stored as int, float or string
     (BT.CPP HEAD) and reported as the first blackboard writes of the run."""
-    r = run(f'<Sequence name="top">{script("s", "x:=1")}'
-            '<SubTree ID="Sub" name="st" x="{=}" i="4" f="2.5" t="hello"/></Sequence>',
-            trees=f'<BehaviorTree ID="Sub">{script("w", "x := x + i + f; u := t .. &apos;!&apos;")}'
-                  '</BehaviorTree>', oracle=False)
+    r = run(
+        f'<Sequence name="top">{script("s", "x:=1")}'
+        '<SubTree ID="Sub" name="st" x="{=}" i="4" f="2.5" t="hello"/></Sequence>',
+        trees=f'<BehaviorTree ID="Sub">{script("w", "x := x + i + f; u := t .. &apos;!&apos;")}'
+        "</BehaviorTree>",
+        oracle=False,
+    )
     assert r.board == {"x": 7.5}
     assert r.executor.blackboards()["st"] == {"i": 4, "f": 2.5, "t": "hello", "u": "hello!"}
     assert r.writes()[:3] == [("st", "i", 4), ("st", "f", 2.5), ("st", "t", "hello")]
 
 
 # -- Script, ScriptCondition ------------------------------------------------------------------
-@pytest.mark.parametrize(("setup", "check"), [
-    ("a:=3; b:=4", "a + b == 7"),
-    ("a:=3; b:=4", "a * b - 2 == 10"),
-    ("a:=7; b:=2", "a / b == 3.5"),
-    ("a:=1", "(a + 2) * 3 == 9"),
-    ("a:=3", "a += 2; a == 5"),
-    ("a:=3", "a -= 5; a == -2"),
-    ("a:=3", "a *= 3; a == 9"),
-    ("a:=2", "a = 5; a == 5"),
-    ("a:=2", "-a * -a == 4"),
-    ("a:=0x10", "a == 16"),
-    ("a:=6", "(a &amp; 3) == 2"),
-    ("a:=6", "(a | 1) == 7"),
-    ("a:=6", "(a ^ 2) == 4"),
-    ("a:=3; b:=5", "a &lt; b &amp;&amp; b &lt;= 5 &amp;&amp; !(a &gt;= b)"),
-    ("a:=3; b:=5", "a &gt; b || b == 5"),
-    ("a:=3", "a == 3.0"),
-    ("a:='5'", "a == 5"),
-    ("a:=true", "a"),
-    ("a:=false", "!a"),
-    ("a:=true", "a + 1 == 2"),
-    ("s:='ab'", "s .. 'cd' == 'abcd'"),
-    ("s:='ab'", "s == 'ab' &amp;&amp; s != 'ba'"),
-    ("s:='abc'", "s &lt; 'abd'"),
-    ("a:=1", "a .. 'x' == '1x'"),
-    ("a:=3", "a &gt; 2 ? true : false"),
-    ("a:=3", "x := a &gt; 2 ? 'big' : 'small'; x == 'big'"),
-    ("a:=1", "(a &gt; 2) ? false : true"),
-])
+@pytest.mark.parametrize(
+    ("setup", "check"),
+    [
+        ("a:=3; b:=4", "a + b == 7"),
+        ("a:=3; b:=4", "a * b - 2 == 10"),
+        ("a:=7; b:=2", "a / b == 3.5"),
+        ("a:=1", "(a + 2) * 3 == 9"),
+        ("a:=3", "a += 2; a == 5"),
+        ("a:=3", "a -= 5; a == -2"),
+        ("a:=3", "a *= 3; a == 9"),
+        ("a:=2", "a = 5; a == 5"),
+        ("a:=2", "-a * -a == 4"),
+        ("a:=0x10", "a == 16"),
+        ("a:=6", "(a &amp; 3) == 2"),
+        ("a:=6", "(a | 1) == 7"),
+        ("a:=6", "(a ^ 2) == 4"),
+        ("a:=3; b:=5", "a &lt; b &amp;&amp; b &lt;= 5 &amp;&amp; !(a &gt;= b)"),
+        ("a:=3; b:=5", "a &gt; b || b == 5"),
+        ("a:=3", "a == 3.0"),
+        ("a:='5'", "a == 5"),
+        ("a:=true", "a"),
+        ("a:=false", "!a"),
+        ("a:=true", "a + 1 == 2"),
+        ("s:='ab'", "s .. 'cd' == 'abcd'"),
+        ("s:='ab'", "s == 'ab' &amp;&amp; s != 'ba'"),
+        ("s:='abc'", "s &lt; 'abd'"),
+        ("a:=1", "a .. 'x' == '1x'"),
+        ("a:=3", "a &gt; 2 ? true : false"),
+        ("a:=3", "x := a &gt; 2 ? 'big' : 'small'; x == 'big'"),
+        ("a:=1", "(a &gt; 2) ? false : true"),
+    ],
+)
 def test_script_condition_is_true(setup: str, check: str) -> None:
     """Assignments, arithmetic (left-associative, as BT.CPP HEAD), comparisons, logic,
     bitwise operators, strings and the ternary, each checked by a ScriptCondition."""
-    r = run(f'<Sequence name="q">{script("s", setup)}'
-            f'<ScriptCondition name="c" code="{check}"/></Sequence>')
+    r = run(
+        f'<Sequence name="q">{script("s", setup)}'
+        f'<ScriptCondition name="c" code="{check}"/></Sequence>'
+    )
     assert r.roots == ["SUCCESS"]
 
 
 def test_script_arithmetic_is_left_associative() -> None:
     """``a - 2 - 3`` is ``(a - 2) - 3`` and ``a / 2 / 3`` is ``(a / 2) / 3``, as in BT.CPP HEAD
     (BT.CPP 4.8.2 grouped them from the right: 10 - (2 - 3) = 11; fixed by the new parser)."""
-    r = run(f'<Sequence name="q">{script("s", "a:=10; b:=12")}'
-            '<ScriptCondition name="c" code="a - 2 - 3 == 5 &amp;&amp; b / 2 / 3 == 2"/>'
-            '</Sequence>', oracle=False)
+    r = run(
+        f'<Sequence name="q">{script("s", "a:=10; b:=12")}'
+        '<ScriptCondition name="c" code="a - 2 - 3 == 5 &amp;&amp; b / 2 / 3 == 2"/>'
+        "</Sequence>",
+        oracle=False,
+    )
     assert r.roots == ["SUCCESS"]
 
 
@@ -1289,21 +2068,35 @@ def test_script_condition_false_fails() -> None:
 
 def test_script_writes_typed_values() -> None:
     """Script creates entries with ``:=``; every write is reported with its writer."""
-    r = run(script("s", "a:=3; b:=a*2+1; s:='x' .. 'y'; t:= a &gt; 2 ? 'big' : 'small'; "
-                        "a += 1; f:=1.5; ok:=true"))
+    r = run(
+        script(
+            "s",
+            "a:=3; b:=a*2+1; s:='x' .. 'y'; t:= a &gt; 2 ? 'big' : 'small'; "
+            "a += 1; f:=1.5; ok:=true",
+        )
+    )
     assert r.board == {"a": 4, "b": 7, "s": "xy", "t": "big", "f": 1.5, "ok": True}
     uid = r.tree.find("s")[0].uid
     writes = [e for e in r.log.events if isinstance(e, BlackboardWrite)]
     assert [(e.key, e.type, e.writer_uid) for e in writes] == [
-        ("a", "int", uid), ("b", "int", uid), ("s", "str", uid), ("t", "str", uid),
-        ("a", "int", uid), ("f", "float", uid), ("ok", "bool", uid)]
+        ("a", "int", uid),
+        ("b", "int", uid),
+        ("s", "str", uid),
+        ("t", "str", uid),
+        ("a", "int", uid),
+        ("f", "float", uid),
+        ("ok", "bool", uid),
+    ]
 
 
-@pytest.mark.parametrize(("code", "problem"), [
-    ("x := y + 1", "variable 'y' is not on the blackboard"),
-    ("z = 1", "variable 'z' does not exist"),
-    ("s := 'a'; s + 1", "'a' is not a number"),
-])
+@pytest.mark.parametrize(
+    ("code", "problem"),
+    [
+        ("x := y + 1", "variable 'y' is not on the blackboard"),
+        ("z = 1", "variable 'z' does not exist"),
+        ("s := 'a'; s + 1", "'a' is not a number"),
+    ],
+)
 def test_script_runtime_errors_name_the_node(code: str, problem: str) -> None:
     """A script failing at run time raises NodeExecutionError naming the node and file:line."""
     _, executor, _ = build(xml(f'<Sequence name="q">\n{script("bad", code)}\n</Sequence>'))
@@ -1319,24 +2112,36 @@ def test_set_and_unset_blackboard() -> None:
     """SetBlackboard writes a literal (as a string) or copies another entry (with its type);
     UnsetBlackboard removes an entry (reported as a write of type "unset"), and removing a
     missing entry is not an error."""
-    r = run(f'<Sequence name="q">{script("s", "src:=42")}'
-            '<SetBlackboard name="s1" value="7" output_key="k"/>'
-            '<SetBlackboard name="s2" value="{src}" output_key="k2"/>'
-            '<UnsetBlackboard name="u" key="k"/><UnsetBlackboard name="u2" key="absent"/>'
-            '</Sequence>')
+    r = run(
+        f'<Sequence name="q">{script("s", "src:=42")}'
+        '<SetBlackboard name="s1" value="7" output_key="k"/>'
+        '<SetBlackboard name="s2" value="{src}" output_key="k2"/>'
+        '<UnsetBlackboard name="u" key="k"/><UnsetBlackboard name="u2" key="absent"/>'
+        "</Sequence>"
+    )
     assert r.roots == ["SUCCESS"]
     assert r.board == {"src": 42, "k2": 42}
     writes = [e for e in r.log.events if isinstance(e, BlackboardWrite)]
     assert [(e.key, e.value, e.type) for e in writes] == [
-        ("src", 42, "int"), ("k", "7", "str"), ("k2", 42, "int"), ("k", None, "unset")]
+        ("src", 42, "int"),
+        ("k", "7", "str"),
+        ("k2", 42, "int"),
+        ("k", None, "unset"),
+    ]
 
 
 # -- typed ports --------------------------------------------------------------------------
 class Typed(SyncAction):
     """A leaf reading one port of each type and writing them as a list."""
 
-    ports: ClassVar[dict] = {"i": InputPort("int"), "f": InputPort("float"), "b": InputPort("bool"),
-             "s": InputPort("str"), "j": InputPort("json"), "out": OutputPort()}
+    ports: ClassVar[dict] = {
+        "i": InputPort("int"),
+        "f": InputPort("float"),
+        "b": InputPort("bool"),
+        "s": InputPort("str"),
+        "j": InputPort("json"),
+        "out": OutputPort(),
+    }
 
     def tick(self) -> Status:
         self.set_output("out", [self.get_input(name) for name in "ifbsj"])
@@ -1347,8 +2152,10 @@ def typed_run(attributes: str, setup: str = "") -> Run:
     """Run a Typed leaf after an optional Script."""
     registry = Registry()
     registry.register_leaf(Typed)
-    text = xml(f'<Sequence name="q">{script("s", setup) if setup else ""}'
-               f'\n<Typed name="t" {attributes} out="{{out}}"/></Sequence>')
+    text = xml(
+        f'<Sequence name="q">{script("s", setup) if setup else ""}'
+        f'\n<Typed name="t" {attributes} out="{{out}}"/></Sequence>'
+    )
     tree = load_tree_text(text, registry)
     executor = Executor(tree, registry)
     log = EventLog()
@@ -1366,34 +2173,44 @@ def test_typed_port_literals() -> None:
 
 def test_typed_port_blackboard_values() -> None:
     """Blackboard entries are converted too: strings are parsed, an integral float is an int."""
-    r = typed_run('i="{i}" f="{f}" b="{b}" s="{s}" j="{j}"',
-                  "i:='7'; f:=2; b:='false'; s:=5; j:='json:[1]'")
+    r = typed_run(
+        'i="{i}" f="{f}" b="{b}" s="{s}" j="{j}"', "i:='7'; f:=2; b:='false'; s:=5; j:='json:[1]'"
+    )
     assert r.board["out"] == [7, 2.0, False, 5, [1]]
     r = typed_run('i="{i}" f="1" b="1" s="" j="null"', "i:=7.0")
     assert r.board["out"][0] == 7
 
 
-@pytest.mark.parametrize(("attributes", "port"), [
-    ('i="x" f="1" b="1" s="" j="1"', "i"),
-    ('i="1" f="one" b="1" s="" j="1"', "f"),
-    ('i="1" f="1" b="2" s="" j="1"', "b"),
-    ('i="1" f="1" b="1" s="" j="{nope"', "j"),
-])
+@pytest.mark.parametrize(
+    ("attributes", "port"),
+    [
+        ('i="x" f="1" b="1" s="" j="1"', "i"),
+        ('i="1" f="one" b="1" s="" j="1"', "f"),
+        ('i="1" f="1" b="2" s="" j="1"', "b"),
+        ('i="1" f="1" b="1" s="" j="{nope"', "j"),
+    ],
+)
 def test_bad_typed_literal_is_refused_at_load(attributes: str, port: str) -> None:
     """A literal that cannot be converted is a load error with file:line, naming the port."""
     registry = Registry()
     registry.register_leaf(Typed)
     with pytest.raises(TreeError) as caught:
-        load_tree_text(xml(f'<Sequence name="q">\n<Typed name="t" {attributes} out="{{o}}"/>'
-                           '</Sequence>'), registry, file="t.xml")
+        load_tree_text(
+            xml(f'<Sequence name="q">\n<Typed name="t" {attributes} out="{{o}}"/></Sequence>'),
+            registry,
+            file="t.xml",
+        )
     assert caught.value.line == 4 and f"port '{port}'" in str(caught.value)
 
 
-@pytest.mark.parametrize(("setup", "problem"), [
-    ("i:='x'", "port 'i': 'x' is not a valid int"),
-    ("i:=7.5", "port 'i': 7.5 is not a valid int"),
-    ("", "port 'i': blackboard entry 'i' does not exist"),
-])
+@pytest.mark.parametrize(
+    ("setup", "problem"),
+    [
+        ("i:='x'", "port 'i': 'x' is not a valid int"),
+        ("i:=7.5", "port 'i': 7.5 is not a valid int"),
+        ("", "port 'i': blackboard entry 'i' does not exist"),
+    ],
+)
 def test_bad_port_value_at_run_time_names_the_node(setup: str, problem: str) -> None:
     """A blackboard value that cannot be converted raises NodeExecutionError naming the node."""
     with pytest.raises(NodeExecutionError) as caught:
@@ -1411,8 +2228,9 @@ def test_missing_required_port_names_the_node() -> None:
 
 def test_parallel_with_fewer_children_than_its_threshold_raises() -> None:
     """BT.CPP throws when N < success_count ("can never succeed")."""
-    _, executor, _ = build(xml(f'<Parallel name="p" success_count="3">{act("a")}{act("b")}'
-                                  '</Parallel>'))
+    _, executor, _ = build(
+        xml(f'<Parallel name="p" success_count="3">{act("a")}{act("b")}</Parallel>')
+    )
     with pytest.raises(NodeExecutionError, match=r"node 'p'.*success_count"):
         executor.tick()
 
@@ -1421,10 +2239,11 @@ def test_parallel_with_fewer_children_than_its_threshold_raises() -> None:
 NESTED = xml(
     '<Sequence name="top"><Leaf/><Leaf name="x"/><Leaf name=""/><SubTree ID="Sub"/>'
     '<SubTree ID="Sub" name="named"/><Leaf name="Leaf"/><Sequence><Leaf name="after"/>'
-    '</Sequence></Sequence>',
+    "</Sequence></Sequence>",
     '<BehaviorTree ID="Sub"><Sequence name="ss"><Leaf name="in"/><SubTree ID="Sub2"/>'
     '<SubTree ID="Sub2" name="deep"/></Sequence></BehaviorTree>'
-    '<BehaviorTree ID="Sub2"><Leaf name="in2"/></BehaviorTree>')
+    '<BehaviorTree ID="Sub2"><Leaf name="in2"/></BehaviorTree>',
+)
 
 
 def test_uids_names_and_paths_follow_btcpp() -> None:
@@ -1462,22 +2281,47 @@ def test_uids_names_and_paths_follow_btcpp() -> None:
 
 def test_generic_form_and_default_ports() -> None:
     """``<Action ID=..>`` takes the ID as its type and name; declared defaults fill ports."""
-    tree = load('<Sequence name="s"><Action ID="Go"/><Condition ID="Check" name="c"/>'
-                '<Parallel name="p"><AlwaysSuccess/></Parallel></Sequence>')
+    tree = load(
+        '<Sequence name="s"><Action ID="Go"/><Condition ID="Check" name="c"/>'
+        '<Parallel name="p"><AlwaysSuccess/></Parallel></Sequence>'
+    )
     go, check, parallel = tree.node(2), tree.node(3), tree.node(4)
     assert (go.type, go.name, go.path, go.kind) == ("Go", "Go", "Go::2", "action")
     assert (check.type, check.name, check.kind) == ("Check", "c", "condition")
     assert {k: p.value for k, p in parallel.ports.items()} == {
-        "success_count": "-1", "failure_count": "1"}
+        "success_count": "-1",
+        "failure_count": "1",
+    }
     assert tree.node(5).path == "AlwaysSuccess::5"
 
 
-@pytest.mark.parametrize(("file", "nodes", "first"), [
-    ("taxi-domain-tree.xml", 21, ["go deliver passenger", "go pick up passenger",
-                                  "go pick up passenger", "navigate to passenger", ""]),
-    ("kitting-tree.xml", 79, ["build a gearbox kit", "go insert large gear",
-                              "go insert large gear", "go insert large gear", ""]),
-])
+@pytest.mark.parametrize(
+    ("file", "nodes", "first"),
+    [
+        (
+            "taxi-domain-tree.xml",
+            21,
+            [
+                "go deliver passenger",
+                "go pick up passenger",
+                "go pick up passenger",
+                "navigate to passenger",
+                "",
+            ],
+        ),
+        (
+            "kitting-tree.xml",
+            79,
+            [
+                "build a gearbox kit",
+                "go insert large gear",
+                "go insert large gear",
+                "go insert large gear",
+                "",
+            ],
+        ),
+    ],
+)
 def test_paper_v3_trees_load(file: str, nodes: int, first: list[str]) -> None:
     """The paper's v3 trees load: uids 1..N in DFS pre-order, SubTree names forced to their
     ID, the v3 spelling ``RetryUntilSuccesful`` accepted."""
@@ -1505,50 +2349,124 @@ def body(text: str, trees: str = "") -> str:
     return xml(text, trees)
 
 
-@pytest.mark.parametrize(("text", "line", "problem"), [
-    (body('<Sequence name="s">\n<AlwaysSuccess/>\n</Sequenc>'), 5, "malformed XML"),
-    (body('<Sequence name="s">\n<Frobnicate><AlwaysSuccess/></Frobnicate></Sequence>'), 4,
-     "unknown node type 'Frobnicate' with children"),
-    (body('<Inverter name="i">\n<AlwaysSuccess/><AlwaysSuccess/></Inverter>'), 3,
-     "Inverter must have 1 children, found 2"),
-    (body('<Sequence name="s"/>'), 3, "Sequence must have at least 1 children, found 0"),
-    (body('<AlwaysSuccess name="a"><AlwaysSuccess/></AlwaysSuccess>'), 3,
-     "AlwaysSuccess must have 0 children"),
-    (body('<IfThenElse name="i"><AlwaysSuccess/></IfThenElse>'), 3,
-     "IfThenElse must have 2 to 3 children"),
-    (body('<Switch2 name="w" variable="1"><AlwaysSuccess/><AlwaysSuccess/></Switch2>'), 3,
-     "Switch2 must have 3 children, found 2"),
-    (body('<Sequence name="s">\n<SubTree ID="Nope"/></Sequence>'), 4,
-     "subtree 'Nope' is not defined"),
-    (body('<SubTree ID="A"/>', '<BehaviorTree ID="A">\n<SubTree ID="B"/></BehaviorTree>\n'
-          '<BehaviorTree ID="B"><SubTree ID="A"/></BehaviorTree>'), 7,
-     "subtree cycle: A -> B -> A"),
-    (body('<SubTree ID="Main"/>'), 3, "subtree cycle: Main -> Main"),
-    ('<root BTCPP_format="4" main_tree_to_execute="Nope">\n<BehaviorTree ID="Main">'
-     '<AlwaysSuccess/></BehaviorTree></root>', 1, "main tree 'Nope' is not defined"),
-    ('<root BTCPP_format="4">\n<BehaviorTree ID="A"><AlwaysSuccess/></BehaviorTree>'
-     '<BehaviorTree ID="B"><AlwaysSuccess/></BehaviorTree></root>', 1,
-     "several <BehaviorTree> and no main_tree_to_execute"),
-    (body('<Sequence name="s">\n<Repeat name="r" num_cycles="three"><AlwaysSuccess/></Repeat>'
-          '</Sequence>'), 4, "bad value 'three' for port 'num_cycles'"),
-    (body('<Sequence name="s">\n<Timeout name="t" msec="1.5"><AlwaysSuccess/></Timeout>'
-          '</Sequence>'), 4, "bad value '1.5' for port 'msec'"),
-    (body('<Sequence name="s">\n<Precondition name="p" if="true" else="MAYBE">'
-          '<AlwaysSuccess/></Precondition></Sequence>'), 4, "bad value 'MAYBE' for port 'else'"),
-    (body('<Sequence name="s">\n<Sequence name="i" foo="1"><AlwaysSuccess/></Sequence>'
-          '</Sequence>'), 4, "Sequence has no port 'foo'"),
-    (body('<Sequence name="s">\n<AlwaysSuccess name="a" bar="1"/></Sequence>'), 4,
-     "AlwaysSuccess has no port 'bar'"),
-    (body('<Sequence name="s">\n<AlwaysSuccess name="a" _skipIf="x =="/></Sequence>'), 4,
-     "_skipIf:"),
-    (body('<Sequence name="s">\n<AlwaysSuccess ID="x"/></Sequence>'), 4,
-     "must not have an ID attribute"),
-    (body('<Sequence name="s">\n<Action name="x"/></Sequence>'), 4, "<Action> needs an ID"),
-    ('<root BTCPP_format="4"><BehaviorTree ID="Main"><AlwaysSuccess/><AlwaysSuccess/>'
-     '</BehaviorTree></root>', 1, "must have exactly one child, found 2"),
-    ('<tree><BehaviorTree ID="Main"><AlwaysSuccess/></BehaviorTree></tree>', 1,
-     "the top element must be <root>"),
-])
+@pytest.mark.parametrize(
+    ("text", "line", "problem"),
+    [
+        (body('<Sequence name="s">\n<AlwaysSuccess/>\n</Sequenc>'), 5, "malformed XML"),
+        (
+            body('<Sequence name="s">\n<Frobnicate><AlwaysSuccess/></Frobnicate></Sequence>'),
+            4,
+            "unknown node type 'Frobnicate' with children",
+        ),
+        (
+            body('<Inverter name="i">\n<AlwaysSuccess/><AlwaysSuccess/></Inverter>'),
+            3,
+            "Inverter must have 1 children, found 2",
+        ),
+        (body('<Sequence name="s"/>'), 3, "Sequence must have at least 1 children, found 0"),
+        (
+            body('<AlwaysSuccess name="a"><AlwaysSuccess/></AlwaysSuccess>'),
+            3,
+            "AlwaysSuccess must have 0 children",
+        ),
+        (
+            body('<IfThenElse name="i"><AlwaysSuccess/></IfThenElse>'),
+            3,
+            "IfThenElse must have 2 to 3 children",
+        ),
+        (
+            body('<Switch2 name="w" variable="1"><AlwaysSuccess/><AlwaysSuccess/></Switch2>'),
+            3,
+            "Switch2 must have 3 children, found 2",
+        ),
+        (
+            body('<Sequence name="s">\n<SubTree ID="Nope"/></Sequence>'),
+            4,
+            "subtree 'Nope' is not defined",
+        ),
+        (
+            body(
+                '<SubTree ID="A"/>',
+                '<BehaviorTree ID="A">\n<SubTree ID="B"/></BehaviorTree>\n'
+                '<BehaviorTree ID="B"><SubTree ID="A"/></BehaviorTree>',
+            ),
+            7,
+            "subtree cycle: A -> B -> A",
+        ),
+        (body('<SubTree ID="Main"/>'), 3, "subtree cycle: Main -> Main"),
+        (
+            '<root BTCPP_format="4" main_tree_to_execute="Nope">\n<BehaviorTree ID="Main">'
+            "<AlwaysSuccess/></BehaviorTree></root>",
+            1,
+            "main tree 'Nope' is not defined",
+        ),
+        (
+            '<root BTCPP_format="4">\n<BehaviorTree ID="A"><AlwaysSuccess/></BehaviorTree>'
+            '<BehaviorTree ID="B"><AlwaysSuccess/></BehaviorTree></root>',
+            1,
+            "several <BehaviorTree> and no main_tree_to_execute",
+        ),
+        (
+            body(
+                '<Sequence name="s">\n<Repeat name="r" num_cycles="three"><AlwaysSuccess/></Repeat>'
+                "</Sequence>"
+            ),
+            4,
+            "bad value 'three' for port 'num_cycles'",
+        ),
+        (
+            body(
+                '<Sequence name="s">\n<Timeout name="t" msec="1.5"><AlwaysSuccess/></Timeout>'
+                "</Sequence>"
+            ),
+            4,
+            "bad value '1.5' for port 'msec'",
+        ),
+        (
+            body(
+                '<Sequence name="s">\n<Precondition name="p" if="true" else="MAYBE">'
+                "<AlwaysSuccess/></Precondition></Sequence>"
+            ),
+            4,
+            "bad value 'MAYBE' for port 'else'",
+        ),
+        (
+            body(
+                '<Sequence name="s">\n<Sequence name="i" foo="1"><AlwaysSuccess/></Sequence>'
+                "</Sequence>"
+            ),
+            4,
+            "Sequence has no port 'foo'",
+        ),
+        (
+            body('<Sequence name="s">\n<AlwaysSuccess name="a" bar="1"/></Sequence>'),
+            4,
+            "AlwaysSuccess has no port 'bar'",
+        ),
+        (
+            body('<Sequence name="s">\n<AlwaysSuccess name="a" _skipIf="x =="/></Sequence>'),
+            4,
+            "_skipIf:",
+        ),
+        (
+            body('<Sequence name="s">\n<AlwaysSuccess ID="x"/></Sequence>'),
+            4,
+            "must not have an ID attribute",
+        ),
+        (body('<Sequence name="s">\n<Action name="x"/></Sequence>'), 4, "<Action> needs an ID"),
+        (
+            '<root BTCPP_format="4"><BehaviorTree ID="Main"><AlwaysSuccess/><AlwaysSuccess/>'
+            "</BehaviorTree></root>",
+            1,
+            "must have exactly one child, found 2",
+        ),
+        (
+            '<tree><BehaviorTree ID="Main"><AlwaysSuccess/></BehaviorTree></tree>',
+            1,
+            "the top element must be <root>",
+        ),
+    ],
+)
 def test_loader_errors_name_file_and_line(text: str, line: int, problem: str) -> None:
     """Every load error is a TreeError whose message starts with ``file:line:``."""
     error = error_of(text)
@@ -1559,17 +2477,21 @@ def test_loader_errors_name_file_and_line(text: str, line: int, problem: str) ->
 
 def test_doctype_and_entities_are_refused() -> None:
     """A DOCTYPE (here declaring an entity) is refused, even when nothing references it."""
-    error = error_of('<?xml version="1.0"?>\n<!DOCTYPE root [<!ENTITY a "aaaa">]>\n'
-                     '<root BTCPP_format="4"><BehaviorTree ID="Main"><AlwaysSuccess/>'
-                     '</BehaviorTree></root>')
+    error = error_of(
+        '<?xml version="1.0"?>\n<!DOCTYPE root [<!ENTITY a "aaaa">]>\n'
+        '<root BTCPP_format="4"><BehaviorTree ID="Main"><AlwaysSuccess/>'
+        "</BehaviorTree></root>"
+    )
     assert "DOCTYPE" in str(error)
 
 
 def test_external_entity_is_refused() -> None:
     """An external entity is never read."""
-    error = error_of('<?xml version="1.0"?>\n<!DOCTYPE root [<!ENTITY x SYSTEM '
-                     '"file:///etc/passwd">]>\n<root BTCPP_format="4"><BehaviorTree ID="Main">'
-                     '<AlwaysSuccess name="&x;"/></BehaviorTree></root>')
+    error = error_of(
+        '<?xml version="1.0"?>\n<!DOCTYPE root [<!ENTITY x SYSTEM '
+        '"file:///etc/passwd">]>\n<root BTCPP_format="4"><BehaviorTree ID="Main">'
+        '<AlwaysSuccess name="&x;"/></BehaviorTree></root>'
+    )
     assert error.file == "tree.xml" and "root:" not in str(error)
 
 
@@ -1577,12 +2499,18 @@ def test_external_entity_is_refused() -> None:
 def test_xml_bomb_is_refused_quickly(where: str) -> None:
     """A billion-laughs document is refused in well under a second, without expanding it."""
     entities = ['<!ENTITY lol0 "lollollollollollollollollollol">'] + [
-        f'<!ENTITY lol{i} "{f"&lol{i - 1};" * 10}">' for i in range(1, 10)]
-    use = ('<AlwaysSuccess name="&lol9;"/>' if where == "attribute"
-           else '<AlwaysSuccess name="a"/><!-- -->&lol9;')
-    text = ('<?xml version="1.0"?>\n<!DOCTYPE root [\n' + "\n".join(entities) + '\n]>\n'
-            f'<root BTCPP_format="4"><BehaviorTree ID="Main"><Sequence name="s">{use}'
-            '</Sequence></BehaviorTree></root>')
+        f'<!ENTITY lol{i} "{f"&lol{i - 1};" * 10}">' for i in range(1, 10)
+    ]
+    use = (
+        '<AlwaysSuccess name="&lol9;"/>'
+        if where == "attribute"
+        else '<AlwaysSuccess name="a"/><!-- -->&lol9;'
+    )
+    text = (
+        '<?xml version="1.0"?>\n<!DOCTYPE root [\n' + "\n".join(entities) + "\n]>\n"
+        f'<root BTCPP_format="4"><BehaviorTree ID="Main"><Sequence name="s">{use}'
+        "</Sequence></BehaviorTree></root>"
+    )
     started = time.perf_counter()
     error_of(text)
     assert time.perf_counter() - started < 1.0
@@ -1596,16 +2524,22 @@ def test_timeout_zero_never_times_out() -> None:
     assert r.roots == ["RUNNING", "RUNNING", "RUNNING", "SUCCESS"]
     assert r.ticks == {
         1: [("t", "IDLE", "RUNNING"), ("a", "IDLE", "RUNNING")],
-        4: [("a", "RUNNING", "SUCCESS"), ("a", "SUCCESS", "IDLE"), ("t", "RUNNING", "SUCCESS"),
-            ("t", "SUCCESS", "IDLE")],
+        4: [
+            ("a", "RUNNING", "SUCCESS"),
+            ("a", "SUCCESS", "IDLE"),
+            ("t", "RUNNING", "SUCCESS"),
+            ("t", "SUCCESS", "IDLE"),
+        ],
     }
 
 
 def test_switch_does_not_accept_digit_separators() -> None:
     """BT.CPP's CheckStringEquality parses with from_chars/stoi: "1_0" is not the integer 10,
     so the default child runs (verified with BT.CPP 4.8.2)."""
-    r = run(f'<Switch2 name="w" variable="1_0" case_1="10" case_2="2">'
-            f'{act("x")}{act("y")}{act("z")}</Switch2>')
+    r = run(
+        f'<Switch2 name="w" variable="1_0" case_1="10" case_2="2">'
+        f"{act('x')}{act('y')}{act('z')}</Switch2>"
+    )
     assert r.ticks[1][0] == ("z", "IDLE", "SUCCESS")
 
 
@@ -1613,28 +2547,34 @@ def test_script_bitwise_operators_bind_tighter_than_comparisons() -> None:
     """BT.CPP HEAD binding powers: comparison 10 < bitwise or/xor 12 < bitwise and 14.
     Verified with BT.CPP 4.8.2: ``a & 3 == 2`` with a=6 is true, ``a | 2 == 2`` with a=1
     is false."""
-    r = run(f'<Sequence name="q">{script("s", "a:=6; b:=1")}'
-            '<ScriptCondition name="c" code="a &amp; 3 == 2"/>'
-            '<Inverter name="i"><ScriptCondition name="d" code="b | 2 == 2"/></Inverter>'
-            '</Sequence>')
+    r = run(
+        f'<Sequence name="q">{script("s", "a:=6; b:=1")}'
+        '<ScriptCondition name="c" code="a &amp; 3 == 2"/>'
+        '<Inverter name="i"><ScriptCondition name="d" code="b | 2 == 2"/></Inverter>'
+        "</Sequence>"
+    )
     assert r.roots == ["SUCCESS"]
 
 
 def test_script_chained_comparisons() -> None:
     """BT.CPP parses ``x < y < z`` as a chain of comparisons (parseChainedComparison at HEAD;
     verified with BT.CPP 4.8.2: ``a > 2 > 1`` with a=3 is true)."""
-    r = run(f'<Sequence name="q">{script("s", "a:=3")}'
-            '<ScriptCondition name="c" code="a &gt; 2 &gt; 1"/></Sequence>')
+    r = run(
+        f'<Sequence name="q">{script("s", "a:=3")}'
+        '<ScriptCondition name="c" code="a &gt; 2 &gt; 1"/></Sequence>'
+    )
     assert r.roots == ["SUCCESS"]
 
 
 def test_script_division_by_zero_is_infinite() -> None:
     """BT.CPP ``ExprBinaryArithmetic``: numbers are cast to double, ``lv / rv``. Verified with
     BT.CPP 4.8.2: ``a / 0 > 1000`` with a=1 is true, ``a / 0 == a / 0`` with a=0 is false."""
-    r = run(f'<Sequence name="q">{script("s", "a:=1; z:=0")}'
-            '<ScriptCondition name="c" code="a / 0 &gt; 1000"/>'
-            '<Inverter name="i"><ScriptCondition name="d" code="z / 0 == z / 0"/></Inverter>'
-            '</Sequence>')
+    r = run(
+        f'<Sequence name="q">{script("s", "a:=1; z:=0")}'
+        '<ScriptCondition name="c" code="a / 0 &gt; 1000"/>'
+        '<Inverter name="i"><ScriptCondition name="d" code="z / 0 == z / 0"/></Inverter>'
+        "</Sequence>"
+    )
     assert r.roots == ["SUCCESS"]
 
 
@@ -1649,15 +2589,22 @@ def test_set_blackboard_output_key_reference_is_read_through() -> None:
 def test_unset_blackboard_key_reference_is_read_through() -> None:
     """BT.CPP: ``getInput("key", key); blackboard->unset(key)``. Verified with BT.CPP 4.8.2:
     with k = 1, ``key="{k}"`` removes entry "1", so k still exists afterwards."""
-    r = run('<Sequence name="q"><SetBlackboard name="s" value="1" output_key="k"/>'
-            '<UnsetBlackboard name="u" key="{k}"/>'
-            '<ScriptCondition name="c" code="k == 1"/></Sequence>')
+    r = run(
+        '<Sequence name="q"><SetBlackboard name="s" value="1" output_key="k"/>'
+        '<UnsetBlackboard name="u" key="{k}"/>'
+        '<ScriptCondition name="c" code="k == 1"/></Sequence>'
+    )
     assert r.roots == ["SUCCESS"]
 
 
-@pytest.mark.parametrize("element", ['<SetBlackboard name="n" value="1"/>',
-                                     '<SetBlackboard name="n" output_key="k"/>',
-                                     '<UnsetBlackboard name="n"/>'])
+@pytest.mark.parametrize(
+    "element",
+    [
+        '<SetBlackboard name="n" value="1"/>',
+        '<SetBlackboard name="n" output_key="k"/>',
+        '<UnsetBlackboard name="n"/>',
+    ],
+)
 def test_blackboard_nodes_without_ports_name_the_node(element: str) -> None:
     """BT.CPP throws "missing port [output_key]" / "missing input port [key]"."""
     _, executor, _ = build(xml(element))
@@ -1665,10 +2612,14 @@ def test_blackboard_nodes_without_ports_name_the_node(element: str) -> None:
         executor.tick()
 
 
-@pytest.mark.parametrize("element", ['<Script name="n" code="x :="/>',
-                                     '<ScriptCondition name="n" code="x =="/>',
-                                     '<Precondition name="n" if="x =="><AlwaysSuccess/>'
-                                     '</Precondition>'])
+@pytest.mark.parametrize(
+    "element",
+    [
+        '<Script name="n" code="x :="/>',
+        '<ScriptCondition name="n" code="x =="/>',
+        '<Precondition name="n" if="x =="><AlwaysSuccess/></Precondition>',
+    ],
+)
 def test_script_syntax_errors_name_the_node(element: str) -> None:
     """BT.CPP parses the script in the node's constructor and refuses the tree. Expected: a
     TreeError with file:line at load, or a NodeExecutionError naming the node."""
@@ -1680,8 +2631,9 @@ def test_script_syntax_errors_name_the_node(element: str) -> None:
 def test_precondition_without_if_is_an_error() -> None:
     """BT.CPP ``PreconditionNode::loadExecutor`` throws when the ``if`` port is missing."""
     with pytest.raises((TreeError, NodeExecutionError)):
-        _, executor, _ = build(xml('<Precondition name="p" else="SUCCESS">'
-                                      '<AlwaysSuccess name="a"/></Precondition>'))
+        _, executor, _ = build(
+            xml('<Precondition name="p" else="SUCCESS"><AlwaysSuccess name="a"/></Precondition>')
+        )
         executor.tick()
 
 
@@ -1695,11 +2647,13 @@ def test_scripted_condition_from_outcomes_is_reevaluated_every_tick() -> None:
     """A ``<Condition ID=..>`` leaf built by ``scripted_leaf_factory`` should behave as a
     BT.CPP ConditionNode: evaluated on every tick. Under WhileDoElse the condition is not
     reset between ticks, so its second entry (FAILURE) must be used at tick 2."""
-    text = xml('<WhileDoElse name="w"><Condition ID="Check" name="c"/>'
-               f'{act("d")}{act("e")}</WhileDoElse>')
+    text = xml(
+        f'<WhileDoElse name="w"><Condition ID="Check" name="c"/>{act("d")}{act("e")}</WhileDoElse>'
+    )
     tree = load_tree_text(text)
-    outcomes = Outcomes.from_mapping({"default": DEFAULT_OUTCOME,
-                                      "nodes": {"c": [ok(), fail()], "d": [ok(5)]}})
+    outcomes = Outcomes.from_mapping(
+        {"default": DEFAULT_OUTCOME, "nodes": {"c": [ok(), fail()], "d": [ok(5)]}}
+    )
     executor = Executor(tree, leaf_factory=scripted_leaf_factory(tree, outcomes))
     log = EventLog()
     executor.subscribe(log)
@@ -1708,12 +2662,17 @@ def test_scripted_condition_from_outcomes_is_reevaluated_every_tick() -> None:
     assert ("c", "SUCCESS", "FAILURE") in result.ticks[2]
 
 
-@pytest.mark.xfail(strict=True, reason="loader: a v4 SubTree with name=\"\" gets the inner "
-                   "prefix 'Sub::2/'; BT.CPP uses the empty name, giving the prefix '/'")
+@pytest.mark.xfail(
+    strict=True,
+    reason='loader: a v4 SubTree with name="" gets the inner '
+    "prefix 'Sub::2/'; BT.CPP uses the empty name, giving the prefix '/'",
+)
 def test_subtree_with_empty_name_has_an_empty_path_segment() -> None:
     """BT.CPP ``recursivelyCreateSubtree``: ``if(auto name = element->Attribute("name"))
     subtree_path += name`` (an empty attribute counts). Verified with BT.CPP 4.8.2: the inner
     leaf's ``full_path()`` is ``/in``."""
-    tree = load('<Sequence name="top"><SubTree ID="Sub" name=""/></Sequence>',
-                '<BehaviorTree ID="Sub"><Leaf name="in"/></BehaviorTree>')
+    tree = load(
+        '<Sequence name="top"><SubTree ID="Sub" name=""/></Sequence>',
+        '<BehaviorTree ID="Sub"><Leaf name="in"/></BehaviorTree>',
+    )
     assert (tree.node(2).path, tree.node(3).path) == ("", "/in")

@@ -28,7 +28,9 @@ from tests.oracle.random_trees import generate
 ROOT = Path(__file__).resolve().parent.parent
 KITTING = ROOT.parent / "shared" / "reference" / "uml-robotics" / "kitting-tree.xml"
 ASKED = [q for intent, q in QUESTIONS.items() if intent != "can"] + [
-    "Can you insert large gear?", "Can you detect chuck?"]
+    "Can you insert large gear?",
+    "Can you detect chuck?",
+]
 
 
 class AnswerEveryEvent(Subscriber):
@@ -75,27 +77,42 @@ def assert_post_hoc_equals_live(path: Path, live: dict[int, list[str]]) -> None:
 
 outcome = st.sampled_from(["SUCCESS", "FAILURE"])
 entry = st.fixed_dictionaries({"status": outcome, "ticks": st.integers(0, 3)})
-names = ["move to see chuck", "lift torso", "look at chuck roughly", "detect chuck",
-         "look at chuck", "scan scene for collision avoidance", "retreat arm",
-         "trial and error insert", "check if grasped", "grasp screw"]
+names = [
+    "move to see chuck",
+    "lift torso",
+    "look at chuck roughly",
+    "detect chuck",
+    "look at chuck",
+    "scan scene for collision avoidance",
+    "retreat arm",
+    "trial and error insert",
+    "check if grasped",
+    "grasp screw",
+]
 
 
-@settings(max_examples=8, deadline=None, suppress_health_check=[HealthCheck.too_slow,
-                                                                 HealthCheck.function_scoped_fixture])
-@given(st.dictionaries(st.sampled_from(names), st.lists(entry, min_size=1, max_size=3),
-                       max_size=4))
+@settings(
+    max_examples=8,
+    deadline=None,
+    suppress_health_check=[HealthCheck.too_slow, HealthCheck.function_scoped_fixture],
+)
+@given(st.dictionaries(st.sampled_from(names), st.lists(entry, min_size=1, max_size=3), max_size=4))
 def test_kitting_live_equals_post_hoc(tmp_path_factory, scripts) -> None:
     tree = load_tree(KITTING)
-    outcomes = Outcomes.from_mapping({"default": {"status": "SUCCESS", "ticks": 1},
-                                      "nodes": scripts})
+    outcomes = Outcomes.from_mapping(
+        {"default": {"status": "SUCCESS", "ticks": 1}, "nodes": scripts}
+    )
     path = tmp_path_factory.mktemp("live") / "run.mcap"
     live = record_with_live_answers(tree, outcomes, path, max_ticks=400)
     assert live
     assert_post_hoc_equals_live(path, live)
 
 
-@settings(max_examples=12, deadline=None, suppress_health_check=[HealthCheck.too_slow,
-                                                                  HealthCheck.function_scoped_fixture])
+@settings(
+    max_examples=12,
+    deadline=None,
+    suppress_health_check=[HealthCheck.too_slow, HealthCheck.function_scoped_fixture],
+)
 @given(st.integers(0, 10_000))
 def test_random_trees_live_equals_post_hoc(tmp_path_factory, seed) -> None:
     case = generate(seed)
@@ -103,6 +120,7 @@ def test_random_trees_live_equals_post_hoc(tmp_path_factory, seed) -> None:
     registry.register(NodeType("ScriptedCondition", CONDITION, declared_only=True))
     tree = load_tree_text(case.xml, registry)
     path = tmp_path_factory.mktemp("random") / "run.mcap"
-    live = record_with_live_answers(tree, Outcomes.from_mapping(case.outcomes), path,
-                                    case.max_ticks)
+    live = record_with_live_answers(
+        tree, Outcomes.from_mapping(case.outcomes), path, case.max_ticks
+    )
     assert_post_hoc_equals_live(path, live)

@@ -21,10 +21,14 @@ PAPER = ROOT.parent / "shared" / "reference" / "uml-robotics"
 KITTING_TREES = [PAPER / "kitting-tree.xml", ROOT / "trees" / "kitting.xml"]
 TAXI_TREES = [PAPER / "taxi-domain-tree.xml", ROOT / "trees" / "taxi.xml"]
 
-SUBGOAL_STEPS = ('To achieve the subgoal "go insert large gear", I need to do 3 steps. '
-                 "1. move to see chuck. 2. detect chuck. 3. insert large gear.")
-GOAL_STEPS = ('To achieve the goal "build a gearbox kit", I need to do 3 steps. '
-              "1. go insert large gear. 2. go pick screw. 3. go place screw.")
+SUBGOAL_STEPS = (
+    'To achieve the subgoal "go insert large gear", I need to do 3 steps. '
+    "1. move to see chuck. 2. detect chuck. 3. insert large gear."
+)
+GOAL_STEPS = (
+    'To achieve the goal "build a gearbox kit", I need to do 3 steps. '
+    "1. go insert large gear. 2. go pick screw. 3. go place screw."
+)
 
 
 class LiveRun:
@@ -40,8 +44,11 @@ class LiveRun:
     def running(self) -> list[str]:
         """Descriptions of the running execution nodes."""
         state = self.projection.state
-        return [n.description for n in self.projection.tree
-                if n.is_execution and state.status_of(n.uid) is RUNNING]
+        return [
+            n.description
+            for n in self.projection.tree
+            if n.is_execution and state.status_of(n.uid) is RUNNING
+        ]
 
     def until(self, description: str, condition=lambda run: True, limit: int = 5000) -> None:
         """Tick until ``description`` is running and ``condition`` holds."""
@@ -61,19 +68,29 @@ class LiveRun:
 
 
 @pytest.mark.parametrize("tree", KITTING_TREES, ids=lambda p: p.name)
-@pytest.mark.parametrize(("node", "why"), [
-    ("move to see chuck", "I move to see chuck in order to go insert large gear."),
-    ("look at chuck roughly", "I look at chuck roughly in order to detect chuck."),
-    ("scan scene for collision avoidance",
-     "I scan scene for collision avoidance in order to insert large gear."),
-])
+@pytest.mark.parametrize(
+    ("node", "why"),
+    [
+        ("move to see chuck", "I move to see chuck in order to go insert large gear."),
+        ("look at chuck roughly", "I look at chuck roughly in order to detect chuck."),
+        (
+            "scan scene for collision avoidance",
+            "I scan scene for collision avoidance in order to insert large gear.",
+        ),
+    ],
+)
 def test_hierarchical_answers_kitting(tree: Path, node: str, why: str) -> None:
     run = LiveRun(tree, "kitting")
     run.until(node)
     texts = [a.text for a in explain(run.projection.tree, run.projection.state)]
     assert texts == [
-        f"I {node}.", why, "My subgoal is to go insert large gear.",
-        "My goal is to build a gearbox kit.", SUBGOAL_STEPS, GOAL_STEPS, "Nothing went wrong.",
+        f"I {node}.",
+        why,
+        "My subgoal is to go insert large gear.",
+        "My goal is to build a gearbox kit.",
+        SUBGOAL_STEPS,
+        GOAL_STEPS,
+        "Nothing went wrong.",
     ]
 
 
@@ -81,32 +98,38 @@ def test_hierarchical_answers_kitting(tree: Path, node: str, why: str) -> None:
 def test_look_at_chuck_failing_once(tree: Path) -> None:
     run = LiveRun(tree, "kitting", {"nodes": {"look at chuck": ["FAILURE", "SUCCESS"]}})
     run.until("retreat arm")
-    assert run.ask("What went wrong?") == \
-        "I could not insert large gear because look at chuck failed."
+    assert (
+        run.ask("What went wrong?") == "I could not insert large gear because look at chuck failed."
+    )
     assert run.ask("Was there anything wrong?") == run.ask("How was the failure handled?")
 
 
 @pytest.mark.parametrize("tree", KITTING_TREES, ids=lambda p: p.name)
 def test_look_at_chuck_failing_twice(tree: Path) -> None:
-    run = LiveRun(tree, "kitting", {"nodes": {"look at chuck": ["FAILURE", "FAILURE",
-                                                                  "SUCCESS"]}})
+    run = LiveRun(tree, "kitting", {"nodes": {"look at chuck": ["FAILURE", "FAILURE", "SUCCESS"]}})
     run.until("retreat arm", LiveRun.retrying)
     assert run.ask("What went wrong?") == (
         "I am retrying for attempt 1 to go insert large gear. "
-        "I could not insert large gear because look at chuck failed.")
+        "I could not insert large gear because look at chuck failed."
+    )
 
 
 @pytest.mark.parametrize("tree", KITTING_TREES, ids=lambda p: p.name)
-@pytest.mark.parametrize(("failing", "cause"), [
-    ("move to see chuck", "I could not go insert large gear because move to see chuck failed."),
-    ("lift torso", "I could not detect chuck because lift torso failed."),
-])
+@pytest.mark.parametrize(
+    ("failing", "cause"),
+    [
+        ("move to see chuck", "I could not go insert large gear because move to see chuck failed."),
+        ("lift torso", "I could not detect chuck because lift torso failed."),
+    ],
+)
 def test_retried_failure(tree: Path, failing: str, cause: str) -> None:
     """Asked while the failed node runs again in the retry's second attempt (paper 7.1.3)."""
     run = LiveRun(tree, "kitting", {"nodes": {failing: ["FAILURE", "SUCCESS"]}})
     run.until(failing, LiveRun.retrying)
-    assert run.ask("What went wrong?") == \
-        f"I am retrying for attempt 1 to go insert large gear. {cause}"
+    assert (
+        run.ask("What went wrong?")
+        == f"I am retrying for attempt 1 to go insert large gear. {cause}"
+    )
 
 
 @pytest.mark.parametrize("tree", KITTING_TREES, ids=lambda p: p.name)
@@ -182,18 +205,29 @@ def test_live_insertion_runs_after_the_subgoal() -> None:
     run.until("trial and error insert")
     result = answer(run.projection.tree, run.projection.state, "Can you insert large gear?")
     plan = result.insertion
-    mutation = run.executor.insert_after(plan.parent.uid, plan.after.uid,
-                                         run.executor.tree.node(plan.source.uid),
-                                         "Can you insert large gear?")
+    mutation = run.executor.insert_after(
+        plan.parent.uid,
+        plan.after.uid,
+        run.executor.tree.node(plan.source.uid),
+        "Can you insert large gear?",
+    )
     assert run.executor.run(max_ticks=20000).name == "SUCCESS"
     tree = run.projection.tree
     assert [c.description for c in tree.root.children] == [
-        "go insert large gear", "Sequence", "go pick screw", "go place screw"]
+        "go insert large gear",
+        "Sequence",
+        "go pick screw",
+        "go place screw",
+    ]
     subgoal, copy, pick = (c.uid for c in tree.root.children[:3])
     assert copy == mutation.inserted_root_uid
 
     def first(uid: int, status: str) -> int:
         return next(e.seq for e in log.transitions if e.uid == uid and e.status.name == status)
 
-    assert first(subgoal, "SUCCESS") < first(copy, "RUNNING") < first(copy, "SUCCESS") \
+    assert (
+        first(subgoal, "SUCCESS")
+        < first(copy, "RUNNING")
+        < first(copy, "SUCCESS")
         < first(pick, "RUNNING")
+    )

@@ -48,13 +48,21 @@ if not KITTING.exists():  # a checkout with shared/ beside it
 
 pytestmark = pytest.mark.skipif(not KITTING.exists(), reason="kitting reference tree missing")
 
-METADATA = {"domain": "outcomes", "seed": 7, "tree_file": "kitting-tree.xml",
-            "outcomes": {"default": {"status": "SUCCESS", "duration": 0.5}},
-            "argv": ["btlog", "run", "kitting-tree.xml"]}
+METADATA = {
+    "domain": "outcomes",
+    "seed": 7,
+    "tree_file": "kitting-tree.xml",
+    "outcomes": {"default": {"status": "SUCCESS", "duration": 0.5}},
+    "argv": ["btlog", "run", "kitting-tree.xml"],
+}
 
 
-def record_kitting(path: Path, flush_interval: float = 1.0, mutate_at: int | None = None,
-                   max_tick_events: int | None = None) -> EventLog:
+def record_kitting(
+    path: Path,
+    flush_interval: float = 1.0,
+    mutate_at: int | None = None,
+    max_tick_events: int | None = None,
+) -> EventLog:
     """Record a scripted kitting run into ``path``; returns the events the executor emitted.
 
     With ``mutate_at``, a copy of the first leaf is inserted under the root at that tick.
@@ -62,16 +70,23 @@ def record_kitting(path: Path, flush_interval: float = 1.0, mutate_at: int | Non
     tree = load_tree(KITTING)
     executor = Executor(tree, leaf_factory=scripted_leaf_factory(tree, Outcomes()))
     log = EventLog()
-    recorder = Recorder(path, tree, METADATA, [(KITTING.name, KITTING.read_bytes())],
-                        flush_interval=flush_interval, max_tick_events=max_tick_events)
+    recorder = Recorder(
+        path,
+        tree,
+        METADATA,
+        [(KITTING.name, KITTING.read_bytes())],
+        flush_interval=flush_interval,
+        max_tick_events=max_tick_events,
+    )
     executor.subscribe(log)
     executor.subscribe(recorder)
 
     def before_tick(ex: Executor) -> None:
         if mutate_at is not None and ex.runtime.tick == mutate_at:
             leaf = next(n for n in ex.tree if n.is_execution)
-            ex.insert_after(ex.tree.root.uid, ex.tree.root.children[0].uid, leaf,
-                            question="Can you look again?")
+            ex.insert_after(
+                ex.tree.root.uid, ex.tree.root.children[0].uid, leaf, question="Can you look again?"
+            )
 
     executor.run(max_ticks=5000, before_tick=before_tick)
     executor.close()
@@ -133,8 +148,12 @@ def test_iter_messages_streams_every_message_in_file_order(kitting_file):
     stream = iter_messages(path)
     messages = list(stream)
     assert messages[0][0] == fmt.TREE_TOPIC
-    events = [row[0] for topic, _, data in messages if topic == fmt.EVENTS_TOPIC
-              for row in orjson.loads(data)["status"]]
+    events = [
+        row[0]
+        for topic, _, data in messages
+        if topic == fmt.EVENTS_TOPIC
+        for row in orjson.loads(data)["status"]
+    ]
     assert events == [e.seq for e in log.events]
     assert not stream.truncated
 
@@ -146,8 +165,15 @@ def test_answers_are_recorded(tmp_path):
         recorder.on_answer(0, 10, 0, "What are you doing?", "doing", "I wait.")
     recorder.close()  # idempotent
     assert open_recording(path).answers == [
-        {"seq": 0, "t_ns": 10, "tick": 0, "question": "What are you doing?",
-         "intent": "doing", "answer": "I wait."}]
+        {
+            "seq": 0,
+            "t_ns": 10,
+            "tick": 0,
+            "question": "What are you doing?",
+            "intent": "doing",
+            "answer": "I wait.",
+        }
+    ]
 
 
 def test_a_huge_tick_is_written_in_parts(tmp_path):
@@ -157,8 +183,11 @@ def test_a_huge_tick_is_written_in_parts(tmp_path):
     assert open_recording(parts).events == log.events
 
     def sizes(path: Path) -> list[int]:
-        return [len(orjson.loads(d)["status"]) for topic, _, d in iter_messages(path)
-                if topic == fmt.EVENTS_TOPIC]
+        return [
+            len(orjson.loads(d)["status"])
+            for topic, _, d in iter_messages(path)
+            if topic == fmt.EVENTS_TOPIC
+        ]
 
     assert max(sizes(whole)) > 4 and max(sizes(parts)) == 4
     assert sum(sizes(parts)) == sum(sizes(whole))
@@ -177,7 +206,7 @@ def test_a_file_cut_anywhere_reads_as_a_gap_free_prefix(kitting_file, tmp_path):
         n = len(recording.events)
         assert recording.events == log.events[:n]
         assert [e.seq for e in recording.events] == list(range(n))
-        assert recording.ticks == log.ticks[:len(recording.ticks)]
+        assert recording.ticks == log.ticks[: len(recording.ticks)]
         assert recording.truncated
         assert recording.warnings[0].startswith(f"{cut_path}: truncated recording; read {n}")
         assert recording.tree.describe() == load_tree(KITTING).describe()
@@ -250,14 +279,18 @@ def endless_events(ticks: int) -> EventLog:
 def test_kill_9_leaves_a_readable_prefix(tmp_path):
     path = tmp_path / "killed.mcap"
     source = Path(btlog.__file__).resolve().parents[1]
-    env = {**os.environ, "PYTHONPATH": os.pathsep.join(
-        filter(None, [str(source), os.environ.get("PYTHONPATH")]))}
-    process = subprocess.Popen([sys.executable, "-c", ENDLESS_RUN, str(path), ENDLESS_XML],
-                               env=env)
+    env = {
+        **os.environ,
+        "PYTHONPATH": os.pathsep.join(filter(None, [str(source), os.environ.get("PYTHONPATH")])),
+    }
+    process = subprocess.Popen([sys.executable, "-c", ENDLESS_RUN, str(path), ENDLESS_XML], env=env)
     try:
         deadline = time.monotonic() + 30
-        while (not path.exists() or path.stat().st_size < 50_000) \
-                and time.monotonic() < deadline and process.poll() is None:
+        while (
+            (not path.exists() or path.stat().st_size < 50_000)
+            and time.monotonic() < deadline
+            and process.poll() is None
+        ):
             time.sleep(0.05)
     finally:
         process.send_signal(signal.SIGKILL)
@@ -267,8 +300,8 @@ def test_kill_9_leaves_a_readable_prefix(tmp_path):
     assert recording.truncated and recording.warnings
     assert len(recording.events) > 1000
     expected = endless_events(recording.ticks[-1].tick + 5)
-    assert recording.events == expected.events[:len(recording.events)]
-    assert recording.ticks == expected.ticks[:len(recording.ticks)]
+    assert recording.events == expected.events[: len(recording.events)]
+    assert recording.ticks == expected.ticks[: len(recording.ticks)]
 
 
 def test_recover_rewrites_a_cut_file_into_an_indexed_one(kitting_file, tmp_path):
@@ -290,7 +323,7 @@ def test_recover_rewrites_a_cut_file_into_an_indexed_one(kitting_file, tmp_path)
         assert indexed == report.messages
         recovered = open_recording(fixed)
         assert not recovered.truncated and recovered.warnings == []
-        assert recovered.events == cut.events == log.events[:len(cut.events)]
+        assert recovered.events == cut.events == log.events[: len(cut.events)]
         assert recovered.metadata == cut.metadata
         assert recovered.attachments == {KITTING.name: KITTING.read_bytes()}
 
@@ -327,9 +360,11 @@ class WriteOddValues(SyncAction):
 def test_values_that_are_not_json_are_recorded_as_repr(tmp_path):
     registry = Registry()
     registry.register_leaf(WriteOddValues)
-    tree = load_tree_text('<root BTCPP_format="4"><BehaviorTree ID="MainTree">'
-                          '<Sequence><WriteOddValues/></Sequence></BehaviorTree></root>',
-                          registry)
+    tree = load_tree_text(
+        '<root BTCPP_format="4"><BehaviorTree ID="MainTree">'
+        "<Sequence><WriteOddValues/></Sequence></BehaviorTree></root>",
+        registry,
+    )
     executor = Executor(tree, registry=registry)
     path = tmp_path / "values.mcap"
     executor.subscribe(Recorder(path, tree, {}))
@@ -337,10 +372,14 @@ def test_values_that_are_not_json_are_recorded_as_repr(tmp_path):
     executor.close()
     writes = {e.key: e for e in open_recording(path).events if isinstance(e, BlackboardWrite)}
     leaf_uid = tree.root.children[0].uid
-    expected = {"object": ("Opaque()", "Opaque"), "set": ("{3}", "set"),
-                "huge": (repr(2**80), "int"), "nan": ("nan", "float"),
-                "int_keys": ("{1: 'a'}", "dict"),
-                "pose": ({"x": 1.5, "tags": ["a", "b"]}, "dict")}
+    expected = {
+        "object": ("Opaque()", "Opaque"),
+        "set": ("{3}", "set"),
+        "huge": (repr(2**80), "int"),
+        "nan": ("nan", "float"),
+        "int_keys": ("{1: 'a'}", "dict"),
+        "pose": ({"x": 1.5, "tags": ["a", "b"]}, "dict"),
+    }
     assert {k: (w.value, w.type) for k, w in writes.items()} == expected
     assert {w.writer_uid for w in writes.values()} == {leaf_uid}
 
@@ -372,8 +411,9 @@ def test_messages_have_exactly_the_fields_of_their_schemas(tmp_path):
             assert set(message) == set(schema["properties"]) == set(schema["required"])
     row_lengths = {"status": 6, "writes": 8}
     for name, length in row_lengths.items():
-        assert len(schema_for(fmt.EVENTS_TOPIC)["properties"][name]["items"]["prefixItems"]) \
-            == length
+        assert (
+            len(schema_for(fmt.EVENTS_TOPIC)["properties"][name]["items"]["prefixItems"]) == length
+        )
     rows = [row for m in found[fmt.EVENTS_TOPIC] for row in m["status"]]
     assert rows and {len(row) for row in rows} == {6}
     assert len(schema_for(fmt.TICKS_TOPIC)["properties"]["ticks"]["items"]["prefixItems"]) == 4
@@ -390,8 +430,9 @@ def test_messages_validate_against_their_schemas(tmp_path):
 
 
 # -- bad input ---------------------------------------------------------------------------------
-def write_plain_mcap(path: Path, metadata: dict[str, str] | None = None,
-                     tree: bool = False) -> None:
+def write_plain_mcap(
+    path: Path, metadata: dict[str, str] | None = None, tree: bool = False
+) -> None:
     """A valid MCAP file with a foreign topic (and optionally btlog pieces)."""
     with path.open("wb") as file:
         writer = Writer(file)
@@ -407,11 +448,14 @@ def write_plain_mcap(path: Path, metadata: dict[str, str] | None = None,
         writer.finish()
 
 
-@pytest.mark.parametrize(("content", "problem"), [
-    (None, "no such file"),
-    (b"", "empty file"),
-    (b"just some text\n", "not an MCAP file"),
-])
+@pytest.mark.parametrize(
+    ("content", "problem"),
+    [
+        (None, "no such file"),
+        (b"", "empty file"),
+        (b"just some text\n", "not an MCAP file"),
+    ],
+)
 def test_bad_files_raise_a_recording_error_naming_the_file(tmp_path, content, problem):
     path = tmp_path / "bad.mcap"
     if content is not None:
@@ -430,8 +474,9 @@ def test_a_directory_is_not_a_recording(tmp_path):
 def test_an_mcap_without_btlog_topics_is_refused(tmp_path):
     path = tmp_path / "foreign.mcap"
     write_plain_mcap(path)
-    with pytest.raises(RecordingError,
-                       match=r"foreign\.mcap: not a btlog recording: no /btlog/tree"):
+    with pytest.raises(
+        RecordingError, match=r"foreign\.mcap: not a btlog recording: no /btlog/tree"
+    ):
         open_recording(path)
     with pytest.raises(RecordingError, match=r"foreign\.mcap: not a btlog recording"):
         read_metadata(path)
@@ -461,5 +506,11 @@ def test_status_rows_use_status_names(kitting_file):
     first = next(orjson.loads(d) for t, _, d in iter_messages(path) if t == fmt.EVENTS_TOPIC)
     event = log.events[0]
     assert isinstance(event, StatusChange)
-    assert first["status"][0] == [event.seq, event.t_ns, event.tick, event.uid,
-                                  event.prev.name, event.status.name]
+    assert first["status"][0] == [
+        event.seq,
+        event.t_ns,
+        event.tick,
+        event.uid,
+        event.prev.name,
+        event.status.name,
+    ]

@@ -87,25 +87,37 @@ class Capture(Subscriber):
         self.live.ticks.append((self.executor.seq, dict(self.executor.statuses())))
 
 
-def record(path: Path, tree_file: Path, outcomes: dict, max_ticks: int,
-           flush_interval: float = 1.0, mutate_at: int | None = None) -> Live:
+def record(
+    path: Path,
+    tree_file: Path,
+    outcomes: dict,
+    max_ticks: int,
+    flush_interval: float = 1.0,
+    mutate_at: int | None = None,
+) -> Live:
     """Run ``tree_file`` with ``outcomes`` into the recording ``path``."""
     from btlog.replay.state import StateProjection
 
     tree = load_tree(tree_file)
-    executor = Executor(tree, leaf_factory=scripted_leaf_factory(
-        tree, Outcomes.from_mapping(outcomes)))
+    executor = Executor(
+        tree, leaf_factory=scripted_leaf_factory(tree, Outcomes.from_mapping(outcomes))
+    )
     projection, live = StateProjection(tree), Live()
-    recorder = Recorder(path, tree, {"domain": "scripted", "seed": 5},
-                        flush_interval=flush_interval)
+    recorder = Recorder(
+        path, tree, {"domain": "scripted", "seed": 5}, flush_interval=flush_interval
+    )
     for subscriber in (recorder, projection, Capture(projection, executor, live), live.log):
         executor.subscribe(subscriber)
 
     def before_tick(ex: Executor) -> None:
         if ex.runtime.tick + 1 == mutate_at:
             plan = answer(projection.tree, projection.state, "Can you detect chuck?").insertion
-            ex.insert_after(plan.parent.uid, plan.after.uid, ex.tree.node(plan.source.uid),
-                            "Can you detect chuck?")
+            ex.insert_after(
+                plan.parent.uid,
+                plan.after.uid,
+                ex.tree.node(plan.source.uid),
+                "Can you detect chuck?",
+            )
 
     executor.run(max_ticks, before_tick)
     executor.close()
@@ -136,10 +148,19 @@ def assert_replay_equals_live(run, live: Live, events: int | None = None) -> Non
 def kitting(tmp_path_factory) -> tuple[Path, Live]:
     """A kitting run with failures, a retry and a fallback, recorded once."""
     path = tmp_path_factory.mktemp("kitting") / "kitting.mcap"
-    live = record(path, KITTING, {"default": DEFAULT, "nodes": {
-        "look at chuck": ["FAILURE", "SUCCESS"],
-        "detect chuck": [{"status": "FAILURE", "ticks": 2}, "SUCCESS"],
-        "trial and error insert": ["FAILURE", "FAILURE", "SUCCESS"]}}, max_ticks=150)
+    live = record(
+        path,
+        KITTING,
+        {
+            "default": DEFAULT,
+            "nodes": {
+                "look at chuck": ["FAILURE", "SUCCESS"],
+                "detect chuck": [{"status": "FAILURE", "ticks": 2}, "SUCCESS"],
+                "trial and error insert": ["FAILURE", "FAILURE", "SUCCESS"],
+            },
+        },
+        max_ticks=150,
+    )
     return path, live
 
 
@@ -149,25 +170,32 @@ def leaf_keys(tree_file: Path) -> list[str]:
     return sorted({n.name or n.type for n in load_tree(tree_file) if n.is_execution})
 
 
-entry = st.fixed_dictionaries({"status": st.sampled_from(["SUCCESS", "FAILURE"]),
-                               "ticks": st.integers(0, 3)})
-PROPERTY = settings(max_examples=6, deadline=None,
-                    suppress_health_check=[HealthCheck.too_slow,
-                                           HealthCheck.function_scoped_fixture])
+entry = st.fixed_dictionaries(
+    {"status": st.sampled_from(["SUCCESS", "FAILURE"]), "ticks": st.integers(0, 3)}
+)
+PROPERTY = settings(
+    max_examples=6,
+    deadline=None,
+    suppress_health_check=[HealthCheck.too_slow, HealthCheck.function_scoped_fixture],
+)
 
 
 def scripts_for(tree_file: Path):
-    return st.dictionaries(st.sampled_from(leaf_keys(tree_file)),
-                           st.lists(entry, min_size=1, max_size=3), max_size=6)
+    return st.dictionaries(
+        st.sampled_from(leaf_keys(tree_file)), st.lists(entry, min_size=1, max_size=3), max_size=6
+    )
 
 
 @PROPERTY
 @given(scripts=scripts_for(KITTING), default_ticks=st.integers(0, 2))
-def test_kitting_state_at_every_seq_equals_the_live_state(tmp_path_factory, scripts,
-                                                          default_ticks):
+def test_kitting_state_at_every_seq_equals_the_live_state(tmp_path_factory, scripts, default_ticks):
     path = tmp_path_factory.mktemp("prop") / "run.mcap"
-    live = record(path, KITTING, {"default": {"status": "SUCCESS", "ticks": default_ticks},
-                                  "nodes": scripts}, max_ticks=120)
+    live = record(
+        path,
+        KITTING,
+        {"default": {"status": "SUCCESS", "ticks": default_ticks}, "nodes": scripts},
+        max_ticks=120,
+    )
     with open_runs(path, cache=False, snapshot_every=7) as database:
         assert_replay_equals_live(database.run(), live)
 
@@ -189,16 +217,43 @@ def test_cached_database_gives_the_same_states(kitting, tmp_path):
 
 # -- the tables -------------------------------------------------------------------------------
 SECTION_5 = {
-    "runs": ["run_id", "file", "tree_name", "started_at", "duration_ns", "final_status",
-             "domain", "seed", "metadata"],
-    "nodes": ["run_id", "uid", "parent_uid", "idx", "depth", "kind", "type", "name", "path",
-              "ports", "added_seq"],
+    "runs": [
+        "run_id",
+        "file",
+        "tree_name",
+        "started_at",
+        "duration_ns",
+        "final_status",
+        "domain",
+        "seed",
+        "metadata",
+    ],
+    "nodes": [
+        "run_id",
+        "uid",
+        "parent_uid",
+        "idx",
+        "depth",
+        "kind",
+        "type",
+        "name",
+        "path",
+        "ports",
+        "added_seq",
+    ],
     "transitions": ["run_id", "seq", "t_ns", "tick", "uid", "prev_status", "status"],
-    "blackboard": ["run_id", "seq", "t_ns", "tick", "scope", "key", "value", "type",
-                   "writer_uid"],
+    "blackboard": ["run_id", "seq", "t_ns", "tick", "scope", "key", "value", "type", "writer_uid"],
     "ticks": ["run_id", "tick", "start_ns", "end_ns", "root_status"],
-    "mutations": ["run_id", "seq", "t_ns", "op", "parent_uid", "after_uid",
-                  "inserted_root_uid", "question"],
+    "mutations": [
+        "run_id",
+        "seq",
+        "t_ns",
+        "op",
+        "parent_uid",
+        "after_uid",
+        "inserted_root_uid",
+        "question",
+    ],
 }
 STATUS_ENUM = "ENUM('IDLE', 'RUNNING', 'SUCCESS', 'FAILURE', 'SKIPPED')"
 
@@ -210,19 +265,30 @@ def test_tables_and_columns_are_those_of_section_5(kitting, tmp_path, cache):
         _columns, rows = database.sql(
             "SELECT table_name, column_name, data_type FROM information_schema.columns "
             "WHERE table_catalog = current_database() AND table_schema = 'main' "
-            "ORDER BY table_name, ordinal_position")
+            "ORDER BY table_name, ordinal_position"
+        )
     found: dict[str, list[str]] = {}
     types = {}
     for table, column, data_type in rows:
         found.setdefault(table, []).append(column)
         types[table, column] = data_type
     assert found == SECTION_5
-    for table, column in [("transitions", "prev_status"), ("transitions", "status"),
-                          ("ticks", "root_status"), ("runs", "final_status")]:
+    for table, column in [
+        ("transitions", "prev_status"),
+        ("transitions", "status"),
+        ("ticks", "root_status"),
+        ("runs", "final_status"),
+    ]:
         assert types[table, column] == STATUS_ENUM
-    for table, column in [("transitions", "t_ns"), ("blackboard", "t_ns"),
-                          ("ticks", "start_ns"), ("ticks", "end_ns"), ("mutations", "t_ns"),
-                          ("runs", "duration_ns"), ("transitions", "seq")]:
+    for table, column in [
+        ("transitions", "t_ns"),
+        ("blackboard", "t_ns"),
+        ("ticks", "start_ns"),
+        ("ticks", "end_ns"),
+        ("mutations", "t_ns"),
+        ("runs", "duration_ns"),
+        ("transitions", "seq"),
+    ]:
         assert types[table, column] == "BIGINT"
     for table, column in [("runs", "metadata"), ("nodes", "ports"), ("blackboard", "value")]:
         assert types[table, column] == "JSON"
@@ -233,23 +299,40 @@ def test_tables_hold_the_run(kitting, tmp_path):
     transitions = live.log.transitions
     with open_runs(path, cache_dir=tmp_path) as database:
         run = database.run()
-        _c, rows = database.sql("SELECT seq, t_ns, tick, uid, prev_status, status "
-                                "FROM transitions ORDER BY seq")
-        assert rows == [(e.seq, e.t_ns, e.tick, e.uid, e.prev.name, e.status.name)
-                        for e in transitions]
-        _c, ticks = database.sql("SELECT tick, start_ns, end_ns, root_status FROM ticks "
-                                 "ORDER BY tick")
-        assert ticks == [(t.tick, t.start_ns, t.end_ns, t.root_status.name)
-                         for t in live.log.ticks]
+        _c, rows = database.sql(
+            "SELECT seq, t_ns, tick, uid, prev_status, status FROM transitions ORDER BY seq"
+        )
+        assert rows == [
+            (e.seq, e.t_ns, e.tick, e.uid, e.prev.name, e.status.name) for e in transitions
+        ]
+        _c, ticks = database.sql(
+            "SELECT tick, start_ns, end_ns, root_status FROM ticks ORDER BY tick"
+        )
+        assert ticks == [(t.tick, t.start_ns, t.end_ns, t.root_status.name) for t in live.log.ticks]
         _c, [(final, duration, domain, seed, tree_name)] = database.sql(
-            "SELECT final_status, duration_ns, domain, seed, tree_name FROM runs")
+            "SELECT final_status, duration_ns, domain, seed, tree_name FROM runs"
+        )
         assert final == live.log.ticks[-1].root_status.name
         assert duration == max(live.log.ticks[-1].end_ns, transitions[-1].t_ns)
         assert (domain, seed, tree_name) == ("scripted", 5, "MainTree")
-        _c, nodes = database.sql("SELECT uid, parent_uid, idx, depth, kind, type, name, path, "
-                                 "added_seq FROM nodes ORDER BY uid")
-        assert nodes == [(n.uid, None if n.parent is None else n.parent.uid, n.index, n.depth,
-                          n.kind, n.type, n.name, n.path, None) for n in run.tree]
+        _c, nodes = database.sql(
+            "SELECT uid, parent_uid, idx, depth, kind, type, name, path, "
+            "added_seq FROM nodes ORDER BY uid"
+        )
+        assert nodes == [
+            (
+                n.uid,
+                None if n.parent is None else n.parent.uid,
+                n.index,
+                n.depth,
+                n.kind,
+                n.type,
+                n.name,
+                n.path,
+                None,
+            )
+            for n in run.tree
+        ]
         assert run.info.run_id == run.info.metadata["run_id"][:8]
 
 
@@ -268,22 +351,29 @@ def test_every_moment_form(kitting, tmp_path):
         started = datetime.fromisoformat(run.info.metadata["started_at"])
         middle = duration // 2 + 1234
         cases = {
-            f"{middle / 1e9:.9f}": middle, f"{middle / 1e9:.9f}s": middle,
-            f"{middle / 1e6:.6f}ms": middle, f"{middle / 1e3:.3f}us": middle,
-            f"{middle}ns": middle, "1500ms": 1_500_000_000, "2": 2_000_000_000,
-            "0": 0, "-2s": duration - 2_000_000_000, "-0s": duration,
+            f"{middle / 1e9:.9f}": middle,
+            f"{middle / 1e9:.9f}s": middle,
+            f"{middle / 1e6:.6f}ms": middle,
+            f"{middle / 1e3:.3f}us": middle,
+            f"{middle}ns": middle,
+            "1500ms": 1_500_000_000,
+            "2": 2_000_000_000,
+            "0": 0,
+            "-2s": duration - 2_000_000_000,
+            "-0s": duration,
             (started + timedelta(microseconds=middle // 1000)).isoformat(): middle // 1000 * 1000,
             (started + timedelta(seconds=3)).astimezone(UTC).isoformat(): 3_000_000_000,
-            (started + timedelta(seconds=3)).astimezone(UTC).replace(tzinfo=None).isoformat():
-                3_000_000_000,
+            (started + timedelta(seconds=3))
+            .astimezone(UTC)
+            .replace(tzinfo=None)
+            .isoformat(): 3_000_000_000,
         }
         for text, t_ns in cases.items():
             resolved = run.resolve(text)
             assert resolved.count == events_up_to(live, lambda e, t=t_ns: e.t_ns <= t), text
             assert resolved.t_ns == t_ns, text
         for n in (0, 1, 7, len(live.log.ticks) // 2, len(live.log.ticks)):
-            assert run.resolve(f"tick:{n}").count == events_up_to(
-                live, lambda e, n=n: e.tick <= n)
+            assert run.resolve(f"tick:{n}").count == events_up_to(live, lambda e, n=n: e.tick <= n)
         for n in (0, 5, len(events) - 1):
             resolved = run.resolve(f"seq:{n}")
             assert (resolved.count, resolved.t_ns) == (n + 1, events[n].t_ns)
@@ -293,29 +383,34 @@ def test_every_moment_form(kitting, tmp_path):
         assert state.tick == 10 and state.seq == run.resolve("tick:10").count
 
 
-@pytest.mark.parametrize(("moment", "message"), [
-    ("99s", "moment '99s' is after the end of the run ({seconds} s)"),
-    ("-99s", "moment '-99s' is before the start of the run (it lasts {seconds} s)"),
-    ("tick:999", "moment 'tick:999' is after the end of the run (last tick {ticks})"),
-    ("seq:99999", "moment 'seq:99999' is after the end of the run (last event seq:{last})"),
-    ("1999-01-01T00:00:00+00:00", "moment '1999-01-01T00:00:00+00:00' is before the start "
-                                  "of the run ("),
-    ("abc", "unparseable moment 'abc': expected seconds"),
-    ("12 parsecs", "unparseable moment '12 parsecs'"),
-    ("tick:-1", "unparseable moment 'tick:-1'"),
-    ("seq:x", "unparseable moment 'seq:x'"),
-    ("2025-13-45T00:00:00", "unparseable moment '2025-13-45T00:00:00': not a valid ISO-8601"),
-])
-def test_moments_outside_the_run_or_unreadable_are_clear_errors(kitting, tmp_path, moment,
-                                                                message):
+@pytest.mark.parametrize(
+    ("moment", "message"),
+    [
+        ("99s", "moment '99s' is after the end of the run ({seconds} s)"),
+        ("-99s", "moment '-99s' is before the start of the run (it lasts {seconds} s)"),
+        ("tick:999", "moment 'tick:999' is after the end of the run (last tick {ticks})"),
+        ("seq:99999", "moment 'seq:99999' is after the end of the run (last event seq:{last})"),
+        (
+            "1999-01-01T00:00:00+00:00",
+            "moment '1999-01-01T00:00:00+00:00' is before the start of the run (",
+        ),
+        ("abc", "unparseable moment 'abc': expected seconds"),
+        ("12 parsecs", "unparseable moment '12 parsecs'"),
+        ("tick:-1", "unparseable moment 'tick:-1'"),
+        ("seq:x", "unparseable moment 'seq:x'"),
+        ("2025-13-45T00:00:00", "unparseable moment '2025-13-45T00:00:00': not a valid ISO-8601"),
+    ],
+)
+def test_moments_outside_the_run_or_unreadable_are_clear_errors(kitting, tmp_path, moment, message):
     path, live = kitting
     with open_runs(path, cache_dir=tmp_path) as database:
         run = database.run()
         with pytest.raises(MomentError) as raised:
             run.state_at(moment)
     duration = max(live.log.ticks[-1].end_ns, live.log.events[-1].t_ns)
-    expected = message.format(seconds=f"{duration / 1e9:.6g}", ticks=len(live.log.ticks),
-                              last=len(live.log.events) - 1)
+    expected = message.format(
+        seconds=f"{duration / 1e9:.6g}", ticks=len(live.log.ticks), last=len(live.log.events) - 1
+    )
     assert expected in str(raised.value)
     assert "\n" not in str(raised.value)
     assert isinstance(raised.value, ValueError)
@@ -343,13 +438,15 @@ def test_two_runs_share_one_database(kitting, tmp_path):
     with open_runs(kitting_path, taxi_path, cache_dir=tmp_path) as database:
         ids = [info.run_id for info in database.runs]
         assert len(set(ids)) == 2
-        _c, counts = database.sql("SELECT run_id, count(*) FROM transitions GROUP BY run_id "
-                                  "ORDER BY run_id")
-        expected = {ids[0]: len(kitting_live.log.transitions),
-                    ids[1]: len(taxi_live.log.transitions)}
+        _c, counts = database.sql(
+            "SELECT run_id, count(*) FROM transitions GROUP BY run_id ORDER BY run_id"
+        )
+        expected = {
+            ids[0]: len(kitting_live.log.transitions),
+            ids[1]: len(taxi_live.log.transitions),
+        }
         assert dict(counts) == expected
-        _c, [(n,)] = database.sql("SELECT count(*) FROM transitions WHERE run_id = ?",
-                                  [ids[1]])
+        _c, [(n,)] = database.sql("SELECT count(*) FROM transitions WHERE run_id = ?", [ids[1]])
         assert n == len(taxi_live.log.transitions)
         for table in SECTION_5:
             _c, rows = database.sql(f"SELECT DISTINCT run_id FROM {table} ORDER BY 1")
@@ -390,11 +487,16 @@ def data_end(data: bytes) -> int:
 
 def test_a_truncated_recording_ingests_its_readable_prefix(tmp_path):
     whole = tmp_path / "whole.mcap"
-    live = record(whole, KITTING, {"default": DEFAULT, "nodes": {
-        "look at chuck": ["FAILURE", "SUCCESS"]}}, max_ticks=100, flush_interval=0)
+    live = record(
+        whole,
+        KITTING,
+        {"default": DEFAULT, "nodes": {"look at chuck": ["FAILURE", "SUCCESS"]}},
+        max_ticks=100,
+        flush_interval=0,
+    )
     data = whole.read_bytes()
     cut = tmp_path / "cut.mcap"
-    cut.write_bytes(data[:data_end(data) * 6 // 10])
+    cut.write_bytes(data[: data_end(data) * 6 // 10])
     with open_runs(cut, cache_dir=tmp_path, snapshot_every=5) as database:
         run = database.run()
         events = run.info.events
@@ -403,8 +505,7 @@ def test_a_truncated_recording_ingests_its_readable_prefix(tmp_path):
         assert any("truncated" in w for w in run.info.warnings)
         assert_replay_equals_live(run, live, events)
         _c, [(count, last)] = database.sql("SELECT count(*), max(seq) FROM transitions")
-        assert last < events and count == sum(1 for e in live.log.transitions
-                                               if e.seq < events)
+        assert last < events and count == sum(1 for e in live.log.transitions if e.seq < events)
         with pytest.raises(MomentError, match="after the end of the run"):
             run.state_at(f"seq:{events}")
 
@@ -431,8 +532,9 @@ def test_the_cache_is_reused_and_rebuilt_when_the_recording_changes(kitting, tmp
     with open_runs(path) as database:
         assert len(database.ingested) == 1
         assert database.run().info.tree_name == "MainTree"
-        assert database.run().info.events == database.sql(
-            "SELECT count(*) FROM transitions")[1][0][0]
+        assert (
+            database.run().info.events == database.sql("SELECT count(*) FROM transitions")[1][0][0]
+        )
     assert not list(tmp_path.glob(".*.duckdb")), "temporary caches are cleaned up"
 
 
@@ -483,62 +585,98 @@ def test_a_mutation_changes_the_tree_from_its_seq_on(tmp_path):
         before, after = run.state_after(count - 1)[0], run.tree_at(f"seq:{count - 1}")
         assert len(after) > len(before) == len(run.tree)
         _c, [(seq, op, question, root)] = database.sql(
-            "SELECT seq, op, question, inserted_root_uid FROM mutations")
+            "SELECT seq, op, question, inserted_root_uid FROM mutations"
+        )
         assert (seq, op, question) == (count - 1, "insert", "Can you detect chuck?")
-        _c, added = database.sql("SELECT uid, added_seq, depth FROM nodes "
-                                 "WHERE added_seq IS NOT NULL ORDER BY uid")
+        _c, added = database.sql(
+            "SELECT uid, added_seq, depth FROM nodes WHERE added_seq IS NOT NULL ORDER BY uid"
+        )
         assert [uid for uid, _s, _d in added] == sorted(
-            n.uid for n in after if n.uid not in before.nodes)
+            n.uid for n in after if n.uid not in before.nodes
+        )
         assert {s for _u, s, _d in added} == {seq}
         assert added[0][0] == root and added[0][2] == after.node(root).depth
         kinds = [e.kind for e in run.timeline(start=f"seq:{seq}", end=f"seq:{seq}")]
         assert kinds == ["mutation"]
 
 
-TRICKY = [0, -1, 2**62, 1.5, 1e-300, "", "a\nb", '"],"writes":[', "],[", "é ü 漢",
-          {"tick": 1, "status": [[1, 2]], "writes": []}, [1, [2, [3]]], None, True,
-          {"nested": {"]}": "{\"tick\":"}}]
+TRICKY = [
+    0,
+    -1,
+    2**62,
+    1.5,
+    1e-300,
+    "",
+    "a\nb",
+    '"],"writes":[',
+    "],[",
+    "é ü 漢",
+    {"tick": 1, "status": [[1, 2]], "writes": []},
+    [1, [2, [3]]],
+    None,
+    True,
+    {"nested": {"]}": '{"tick":'}},
+]
 
 
 def test_blackboard_values_round_trip(tmp_path):
     from btlog.tree.loader import load_tree_text
 
-    tree = load_tree_text('<root BTCPP_format="4"><BehaviorTree ID="M">'
-                          '<AlwaysSuccess name="writer"/></BehaviorTree></root>')
+    tree = load_tree_text(
+        '<root BTCPP_format="4"><BehaviorTree ID="M">'
+        '<AlwaysSuccess name="writer"/></BehaviorTree></root>'
+    )
     path = tmp_path / "values.mcap"
     recorder = Recorder(path, tree, {"domain": "test"})
     log = EventLog()
     for target in (recorder, log):
         for seq, value in enumerate(TRICKY):
-            target.on_write(seq, seq * 10, 1, "scope/x" if seq % 2 else "", f"k{seq}", value,
-                            type(value).__name__, 1)
+            target.on_write(
+                seq,
+                seq * 10,
+                1,
+                "scope/x" if seq % 2 else "",
+                f"k{seq}",
+                value,
+                type(value).__name__,
+                1,
+            )
         target.on_write(len(TRICKY), 999, 1, "", "k0", None, "unset", None)
         target.on_status(len(TRICKY) + 1, 1000, 1, 1, IDLE, SUCCESS)
         target.on_tick(TickRecord(1, 0, 1000, SUCCESS))
     recorder.close()
     with open_runs(path, cache=False, snapshot_every=3) as database:
-        _c, rows = database.sql("SELECT seq, scope, key, value, type, writer_uid "
-                                "FROM blackboard ORDER BY seq")
+        _c, rows = database.sql(
+            "SELECT seq, scope, key, value, type, writer_uid FROM blackboard ORDER BY seq"
+        )
         assert [orjson.loads(r[3]) for r in rows[:-1]] == TRICKY
         assert rows[-1][4] == "unset" and rows[-1][5] is None
         _tree, state = database.run().state_at("end")
-    assert state.blackboard == {"": {f"k{i}": v for i, v in enumerate(TRICKY)
-                                     if i % 2 == 0 and i != 0},
-                                "scope/x": {f"k{i}": v for i, v in enumerate(TRICKY)
-                                            if i % 2}}
+    assert state.blackboard == {
+        "": {f"k{i}": v for i, v in enumerate(TRICKY) if i % 2 == 0 and i != 0},
+        "scope/x": {f"k{i}": v for i, v in enumerate(TRICKY) if i % 2},
+    }
     assert [e.seq for e in log.events] == list(range(len(TRICKY) + 2))
 
 
 def test_a_gap_in_the_seqs_is_reported_and_moments_count_seqs(tmp_path):
     from btlog.tree.loader import load_tree_text
 
-    tree = load_tree_text('<root BTCPP_format="4"><BehaviorTree ID="M">'
-                          '<AlwaysSuccess name="a"/></BehaviorTree></root>')
+    tree = load_tree_text(
+        '<root BTCPP_format="4"><BehaviorTree ID="M">'
+        '<AlwaysSuccess name="a"/></BehaviorTree></root>'
+    )
     path = tmp_path / "gap.mcap"
     recorder = Recorder(path, tree, {"domain": "test"})
     for seq in (0, 1, 3, 4):  # seq 2 is missing
-        recorder.on_status(seq, seq * 100, 1, 1, IDLE if seq % 2 == 0 else RUNNING,
-                           RUNNING if seq % 2 == 0 else SUCCESS)
+        recorder.on_status(
+            seq,
+            seq * 100,
+            1,
+            1,
+            IDLE if seq % 2 == 0 else RUNNING,
+            RUNNING if seq % 2 == 0 else SUCCESS,
+        )
     recorder.on_tick(TickRecord(1, 0, 400, SUCCESS))
     recorder.close()
     with open_runs(path, cache=False, snapshot_every=2) as database:
@@ -558,8 +696,7 @@ def write_messages(target: Path, metadata: dict[str, str], messages) -> None:
         writer.start()
         channels = {}
         for topic, (name, schema) in fmt.TOPICS.items():
-            schema_id = writer.register_schema(name, SchemaEncoding.JSONSchema,
-                                               schema_text(schema))
+            schema_id = writer.register_schema(name, SchemaEncoding.JSONSchema, schema_text(schema))
             channels[topic] = writer.register_channel(topic, MessageEncoding.JSON, schema_id)
         writer.add_metadata(fmt.METADATA_NAME, metadata)
         for topic, log_time, data in messages:
@@ -572,8 +709,10 @@ def write_spaced_recording(source: Path, target: Path) -> None:
     (still valid JSON of the same layout), so that only the general decoding reads it."""
     from btlog.record.reader import iter_messages, read_metadata
 
-    metadata = {k: v if isinstance(v, str) else orjson.dumps(v).decode()
-                for k, v in read_metadata(source).items()}
+    metadata = {
+        k: v if isinstance(v, str) else orjson.dumps(v).decode()
+        for k, v in read_metadata(source).items()
+    }
     messages = []
     for topic, log_time, data in iter_messages(source):
         message = orjson.loads(data)
@@ -586,12 +725,17 @@ def test_rows_that_break_the_format_are_a_replay_error(kitting, tmp_path):
     from btlog.record.reader import iter_messages, read_metadata
 
     path, _live = kitting
-    metadata = {k: v if isinstance(v, str) else orjson.dumps(v).decode()
-                for k, v in read_metadata(path).items()}
+    metadata = {
+        k: v if isinstance(v, str) else orjson.dumps(v).decode()
+        for k, v in read_metadata(path).items()
+    }
     tree = next(m for m in iter_messages(path) if m[0] == fmt.TREE_TOPIC)
     broken = tmp_path / "broken.mcap"
-    write_messages(broken, metadata, [tree, (fmt.EVENTS_TOPIC, 1, b'{"tick":1,"status":'
-                                                               b'[[0,0,1]],"writes":[]}')])
+    write_messages(
+        broken,
+        metadata,
+        [tree, (fmt.EVENTS_TOPIC, 1, b'{"tick":1,"status":[[0,0,1]],"writes":[]}')],
+    )
     with pytest.raises(ReplayError, match=r"broken\.mcap.*do not follow the btlog format"):
         open_runs(broken, cache=False)
 
@@ -624,8 +768,9 @@ def test_unreadable_recordings_are_replay_errors(tmp_path):
 def test_sql_is_parameterised_and_errors_are_one_line(kitting, tmp_path):
     path, live = kitting
     with open_runs(path, cache_dir=tmp_path) as database:
-        columns, rows = database.sql("SELECT uid, status FROM transitions WHERE seq = $seq",
-                                     {"seq": 3})
+        columns, rows = database.sql(
+            "SELECT uid, status FROM transitions WHERE seq = $seq", {"seq": 3}
+        )
         event = live.log.transitions[3]
         assert columns == ["uid", "status"] and rows == [(event.uid, event.status.name)]
         with pytest.raises(ReplayError) as raised:
@@ -643,14 +788,17 @@ def test_timeline_filters_by_node_status_and_moments(kitting, tmp_path):
         [chuck] = tree.find("look at chuck")
         entries = run.timeline(node="look at chuck")
         assert [(e.seq, e.status) for e in entries] == [
-            (e.seq, e.status.name) for e in live.log.transitions if e.uid == chuck.uid]
+            (e.seq, e.status.name) for e in live.log.transitions if e.uid == chuck.uid
+        ]
         assert {e.node for e in entries} == {"look at chuck"}
         failures = run.timeline(status="failure")
-        assert [e.seq for e in failures] == [e.seq for e in live.log.transitions
-                                             if e.status is FAILURE]
+        assert [e.seq for e in failures] == [
+            e.seq for e in live.log.transitions if e.status is FAILURE
+        ]
         window = run.timeline(start="1s", end="2s")
-        assert [e.seq for e in window] == [e.seq for e in live.log.events
-                                           if 1_000_000_000 <= e.t_ns <= 2_000_000_000]
+        assert [e.seq for e in window] == [
+            e.seq for e in live.log.events if 1_000_000_000 <= e.t_ns <= 2_000_000_000
+        ]
         ticks = run.timeline(start="tick:3", end="tick:4")
         assert [e.seq for e in ticks] == [e.seq for e in live.log.events if 3 <= e.tick <= 4]
         assert run.timeline(status=RUNNING, node=chuck.uid)[0].prev_status == "IDLE"

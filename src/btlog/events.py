@@ -80,12 +80,22 @@ Event = StatusChange | BlackboardWrite | TreeMutation
 class Subscriber:
     """Receives a run's events in execution order. Override what you need."""
 
-    def on_status(self, seq: int, t_ns: int, tick: int, uid: int, prev: Status,
-                  status: Status) -> None:
+    def on_status(
+        self, seq: int, t_ns: int, tick: int, uid: int, prev: Status, status: Status
+    ) -> None:
         """A status change."""
 
-    def on_write(self, seq: int, t_ns: int, tick: int, scope: str, key: str, value: Any,
-                 type_name: str, writer_uid: int | None) -> None:
+    def on_write(
+        self,
+        seq: int,
+        t_ns: int,
+        tick: int,
+        scope: str,
+        key: str,
+        value: Any,
+        type_name: str,
+        writer_uid: int | None,
+    ) -> None:
         """A blackboard write (``type_name == "unset"`` for a removal)."""
 
     def on_mutation(self, mutation: TreeMutation) -> None:
@@ -109,8 +119,9 @@ class EventLog(Subscriber):
         self.events.append(StatusChange(seq, t_ns, tick, uid, prev, status))
 
     def on_write(self, seq, t_ns, tick, scope, key, value, type_name, writer_uid) -> None:
-        self.events.append(BlackboardWrite(seq, t_ns, tick, scope, key, value, type_name,
-                                           writer_uid))
+        self.events.append(
+            BlackboardWrite(seq, t_ns, tick, scope, key, value, type_name, writer_uid)
+        )
 
     def on_mutation(self, mutation: TreeMutation) -> None:
         self.events.append(mutation)

@@ -34,8 +34,10 @@ from btlog.tree.loader import load_tree
 from btlog.tree.model import Tree
 
 DEFAULT_MAX_TICKS = 100_000
-_LIVE_MOMENT = re.compile(r"^(?:(?P<tick>tick:)(?P<n>\d+)|(?P<seq>seq:)(?P<s>\d+)|"
-                          r"(?P<num>\d+(?:\.\d*)?|\.\d+)(?P<unit>s|ms|us|ns)?)$")
+_LIVE_MOMENT = re.compile(
+    r"^(?:(?P<tick>tick:)(?P<n>\d+)|(?P<seq>seq:)(?P<s>\d+)|"
+    r"(?P<num>\d+(?:\.\d*)?|\.\d+)(?P<unit>s|ms|us|ns)?)$"
+)
 _UNIT_NS = {"s": 1e9, "ms": 1e6, "us": 1e3, "ns": 1.0}
 
 
@@ -59,12 +61,14 @@ class LiveQuestion:
         when, sep, question = text.partition("=")
         when, question = when.strip(), question.strip()
         if not sep or not when or not question:
-            raise RunError(f"--ask {text!r}: expected WHEN=QUESTION, e.g. 12.5s=What are you "
-                           "doing?")
+            raise RunError(
+                f"--ask {text!r}: expected WHEN=QUESTION, e.g. 12.5s=What are you doing?"
+            )
         match = _LIVE_MOMENT.match(when)
         if match is None:
-            raise RunError(f"--ask {text!r}: unparseable moment {when!r} (use 12.5s, 1500ms, "
-                           "tick:N or seq:N)")
+            raise RunError(
+                f"--ask {text!r}: unparseable moment {when!r} (use 12.5s, 1500ms, tick:N or seq:N)"
+            )
         parse_question(question)
         if match["tick"]:
             return cls(when, question, "tick", int(match["n"]))
@@ -141,20 +145,23 @@ class RunConfig:
     @classmethod
     def from_metadata(cls, metadata: dict, tree: str | None = None) -> RunConfig:
         """The configuration of a recorded run (for re-running it)."""
+
         def loaded(key: str, default):
             value = metadata.get(key, default)
             return json.loads(value) if isinstance(value, str) else value
 
-        return cls(tree=tree or _recorded_tree(metadata),
-                   domain=metadata.get("domain", "scripted"),
-                   outcomes=loaded("outcomes", {}),
-                   fail=list(loaded("fail", [])),
-                   failure_rate=float(metadata.get("failure_rate", 0.0)),
-                   seed=int(metadata.get("seed", 0)),
-                   tick_period=float(metadata.get("tick_period", 0.1)),
-                   max_ticks=int(metadata.get("max_ticks", DEFAULT_MAX_TICKS)),
-                   questions=list(loaded("questions", [])),
-                   realtime=metadata.get("clock") == "wall")
+        return cls(
+            tree=tree or _recorded_tree(metadata),
+            domain=metadata.get("domain", "scripted"),
+            outcomes=loaded("outcomes", {}),
+            fail=list(loaded("fail", [])),
+            failure_rate=float(metadata.get("failure_rate", 0.0)),
+            seed=int(metadata.get("seed", 0)),
+            tick_period=float(metadata.get("tick_period", 0.1)),
+            max_ticks=int(metadata.get("max_ticks", DEFAULT_MAX_TICKS)),
+            questions=list(loaded("questions", [])),
+            realtime=metadata.get("clock") == "wall",
+        )
 
 
 def _recorded_tree(metadata: dict) -> str:
@@ -180,9 +187,13 @@ class RunResult:
 class LiveQuestions(Subscriber):
     """Answers the run's live questions at tick boundaries from a live state projection."""
 
-    def __init__(self, executor: Executor, questions: list[LiveQuestion],
-                 recorder: Recorder | None,
-                 on_answer: Callable[[LiveQuestion, Answer, int], None] | None) -> None:
+    def __init__(
+        self,
+        executor: Executor,
+        questions: list[LiveQuestion],
+        recorder: Recorder | None,
+        on_answer: Callable[[LiveQuestion, Answer, int], None] | None,
+    ) -> None:
         self.executor = executor
         self.pending = list(questions)
         self.recorder = recorder
@@ -207,12 +218,21 @@ class LiveQuestions(Subscriber):
         seq = self.executor.seq
         if result.insertion is not None:
             plan = result.insertion
-            self.executor.insert_after(plan.parent.uid, plan.after.uid,
-                                       self.executor.tree.node(plan.source.uid),
-                                       question.question)
+            self.executor.insert_after(
+                plan.parent.uid,
+                plan.after.uid,
+                self.executor.tree.node(plan.source.uid),
+                question.question,
+            )
         if self.recorder is not None:
-            self.recorder.on_answer(seq, state.t_ns, self.executor.runtime.tick,
-                                    question.question, result.intent, result.text)
+            self.recorder.on_answer(
+                seq,
+                state.t_ns,
+                self.executor.runtime.tick,
+                question.question,
+                result.intent,
+                result.text,
+            )
         self.answered.append((question, result, seq))
         if self.on_answer is not None:
             self.on_answer(question, result, seq)
@@ -230,9 +250,12 @@ def default_output(tree_path: str, run_id: str) -> Path:
     return Path(f"{Path(tree_path).stem}-{run_id}.mcap")
 
 
-def execute(config: RunConfig, output: str | os.PathLike | None = None,
-            on_answer: Callable[[LiveQuestion, Answer, int], None] | None = None,
-            on_tick: Callable[[int], None] | None = None) -> RunResult:
+def execute(
+    config: RunConfig,
+    output: str | os.PathLike | None = None,
+    on_answer: Callable[[LiveQuestion, Answer, int], None] | None = None,
+    on_tick: Callable[[int], None] | None = None,
+) -> RunResult:
     """Run ``config`` and record it; returns where the recording is and how it ended."""
     tree = load_tree(config.tree)
     outcomes = config.load_outcomes()
@@ -251,8 +274,13 @@ def execute(config: RunConfig, output: str | os.PathLike | None = None,
     run_id = uuid.uuid4().hex[:12]
     path = Path(output) if output else default_output(config.tree, run_id)
     attachments = [(Path(f).name, Path(f).read_bytes()) for f in tree.files]
-    recorder = Recorder(path, tree, config.to_metadata(tree, run_id, outcomes), attachments,
-                        flush_interval=config.flush_interval)
+    recorder = Recorder(
+        path,
+        tree,
+        config.to_metadata(tree, run_id, outcomes),
+        attachments,
+        flush_interval=config.flush_interval,
+    )
     executor.subscribe(recorder)
     live = LiveQuestions(executor, questions, recorder, on_answer) if questions else None
 
@@ -268,5 +296,11 @@ def execute(config: RunConfig, output: str | os.PathLike | None = None,
             live.finish()
     finally:
         executor.close()
-    return RunResult(path, run_id, status, executor.runtime.tick, executor.seq,
-                     live.answered if live is not None else [])
+    return RunResult(
+        path,
+        run_id,
+        status,
+        executor.runtime.tick,
+        executor.seq,
+        live.answered if live is not None else [],
+    )

@@ -28,8 +28,14 @@ from btlog.testing.expectations import (
 )
 
 EXIT_OK, EXIT_CHECK_FAILED = 0, 1
-_STYLES = {"title": "bold", "header": "bold", "row": "", "divergent": "bold blue",
-           "blank": "", "summary": "bold"}
+_STYLES = {
+    "title": "bold",
+    "header": "bold",
+    "row": "",
+    "divergent": "bold blue",
+    "blank": "",
+    "summary": "bold",
+}
 
 
 def diff(args: Namespace) -> int:
@@ -53,8 +59,9 @@ def _check_options(args: Namespace) -> Expectations | None:
     return load_expectations(args.expect) if args.expect else None
 
 
-def _check_one(path: str, expectations: Expectations | None,
-               args: Namespace) -> tuple[list[CheckResult], RerunReport | None]:
+def _check_one(
+    path: str, expectations: Expectations | None, args: Namespace
+) -> tuple[list[CheckResult], RerunReport | None]:
     results = check_run(path, expectations) if expectations is not None else []
     report = rerun(path, args.tree) if args.rerun else None
     return results, report
@@ -64,14 +71,17 @@ def _passed(results: list[CheckResult], report: RerunReport | None) -> bool:
     return all(r.ok for r in results) and (report is None or report.ok)
 
 
-def _print_run(path: str, expectations: Expectations | None, results: list[CheckResult],
-               report: RerunReport | None) -> None:
+def _print_run(
+    path: str,
+    expectations: Expectations | None,
+    results: list[CheckResult],
+    report: RerunReport | None,
+) -> None:
     verdict = "PASS" if _passed(results, report) else "FAIL"
     print(f"{verdict}  {safe(path)}")
     if expectations is not None:
         failed = sum(not r.ok for r in results)
-        print(f"  expectations {safe(expectations.source)}: {len(results)} checks, "
-              f"{failed} failed")
+        print(f"  expectations {safe(expectations.source)}: {len(results)} checks, {failed} failed")
         for result in results:
             print(_indent(safe_report(result), 4))
     if report is not None:
@@ -104,8 +114,10 @@ def check(args: Namespace) -> int:
         for path, results, report in outcomes:
             _print_run(path, expectations, results, report)
         count = len(outcomes)
-        print(f"{count} run{'s' if count != 1 else ''} checked: {count - len(failed)} passed, "
-              f"{len(failed)} failed")
+        print(
+            f"{count} run{'s' if count != 1 else ''} checked: {count - len(failed)} passed, "
+            f"{len(failed)} failed"
+        )
     return EXIT_CHECK_FAILED if failed else EXIT_OK
 
 
@@ -114,8 +126,10 @@ def _json(outcomes, expectations: Expectations | None, ok: bool) -> dict:
     for path, results, report in outcomes:
         entry: dict = {"run": path, "ok": _passed(results, report)}
         if expectations is not None:
-            entry["expectations"] = {"file": expectations.source,
-                                     "checks": [r.to_json() for r in results]}
+            entry["expectations"] = {
+                "file": expectations.source,
+                "checks": [r.to_json() for r in results],
+            }
         if report is not None:
             entry["rerun"] = report.to_json()
         runs.append(entry)

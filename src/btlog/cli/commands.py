@@ -35,11 +35,19 @@ def _print_json(data: object) -> None:
 # -- run ---------------------------------------------------------------------------------
 def run(args: Namespace) -> int:
     """``btlog run``: execute and record; print the file, event count and final status."""
-    config = RunConfig(tree=args.tree, domain=args.domain, outcomes_file=args.outcomes,
-                       fail=args.fail, failure_rate=args.failure_rate, seed=args.seed,
-                       tick_period=args.tick_period, max_ticks=args.max_ticks,
-                       questions=args.ask, realtime=args.realtime,
-                       flush_interval=args.flush_interval)
+    config = RunConfig(
+        tree=args.tree,
+        domain=args.domain,
+        outcomes_file=args.outcomes,
+        fail=args.fail,
+        failure_rate=args.failure_rate,
+        seed=args.seed,
+        tick_period=args.tick_period,
+        max_ticks=args.max_ticks,
+        questions=args.ask,
+        realtime=args.realtime,
+        flush_interval=args.flush_interval,
+    )
     console = make_console()
 
     def on_answer(question, result: Answer, seq: int) -> None:
@@ -48,13 +56,22 @@ def run(args: Namespace) -> int:
 
     interactive = sys.stderr.isatty() and not args.quiet
     if interactive:
-        progress = Progress(TextColumn("running"), BarColumn(), TextColumn("tick {task.completed}"),
-                            TimeElapsedColumn(), console=make_console(stderr=True),
-                            transient=True)
+        progress = Progress(
+            TextColumn("running"),
+            BarColumn(),
+            TextColumn("tick {task.completed}"),
+            TimeElapsedColumn(),
+            console=make_console(stderr=True),
+            transient=True,
+        )
         with progress:
             task = progress.add_task("run", total=args.max_ticks)
-            result = execute(config, args.output, on_answer,
-                             on_tick=lambda tick: progress.update(task, completed=tick))
+            result = execute(
+                config,
+                args.output,
+                on_answer,
+                on_tick=lambda tick: progress.update(task, completed=tick),
+            )
     else:
         result = execute(config, args.output, on_answer)
     if args.quiet:
@@ -64,8 +81,9 @@ def run(args: Namespace) -> int:
     final = result.final_status.name
     if not result.final_status.completed:
         final += f" (stopped after --max-ticks {args.max_ticks}; the tree was halted)"
-    console.print(f"events: {result.events}  ticks: {result.ticks}  final status: {final}",
-                  highlight=False)
+    console.print(
+        f"events: {result.events}  ticks: {result.ticks}  final status: {final}", highlight=False
+    )
     return 0
 
 
@@ -75,8 +93,9 @@ def _open_runs(*paths: str):
     from btlog.replay.database import open_runs
 
     if sys.stderr.isatty():
-        with make_console(stderr=True).status("reading the recording (the first time builds "
-                                              "its cache)…"):
+        with make_console(stderr=True).status(
+            "reading the recording (the first time builds its cache)…"
+        ):
             database = open_runs(*paths)
     else:
         database = open_runs(*paths)
@@ -127,8 +146,9 @@ def explain(args: Namespace) -> int:
     tree, state = _state(args.run, args.at)
     answers = explain_all(tree, state)
     if args.json:
-        _print_json({"moment": _moment_json(state, args.at),
-                     "answers": [a.to_json() for a in answers]})
+        _print_json(
+            {"moment": _moment_json(state, args.at), "answers": [a.to_json() for a in answers]}
+        )
         return 0
     for result in answers:
         print(f"{result.question}\n  {result.text}")
@@ -143,13 +163,16 @@ def show(args: Namespace) -> int:
         from btlog.render.html import page
 
         title = f"{Path(args.run).name} at {args.at}"
-        Path(args.html).write_text(page(title, tree, state, current, explain_all(tree, state)),
-                                   encoding="utf-8")
+        Path(args.html).write_text(
+            page(title, tree, state, current, explain_all(tree, state)), encoding="utf-8"
+        )
         print(args.html)
         return 0
     console = make_console(args.plain)
-    console.print(f"at {args.at}: seq {state.seq}, tick {state.tick}, {format_ns(state.t_ns)}",
-                  highlight=False)
+    console.print(
+        f"at {args.at}: seq {state.seq}, tick {state.tick}, {format_ns(state.t_ns)}",
+        highlight=False,
+    )
     for line in tree_lines(tree, state, current):
         console.print(line)
     if args.blackboard:
@@ -192,8 +215,9 @@ def _timeline_line(row: dict) -> str:
         return f"{head} {safe(row['scope'] or '(root)')}.{safe(row['key'])} = {safe(value)}"
     if row["kind"] == "mutation":
         return f"{head} inserted {safe(row['node'] or '')} #{row['uid']}"
-    return (f"{head} {safe(row['node'] or '')} #{row['uid']}  "
-            f"{row['prev_status']} -> {row['status']}")
+    return (
+        f"{head} {safe(row['node'] or '')} #{row['uid']}  {row['prev_status']} -> {row['status']}"
+    )
 
 
 # -- sql ---------------------------------------------------------------------------------
@@ -205,8 +229,11 @@ def sql(args: Namespace) -> int:
     finally:
         database.close()
     if args.format == "json":
-        print(json.dumps([dict(zip(columns, row, strict=True)) for row in rows],
-                         default=str, indent=2))
+        print(
+            json.dumps(
+                [dict(zip(columns, row, strict=True)) for row in rows], default=str, indent=2
+            )
+        )
     elif args.format == "csv":
         buffer = io.StringIO()
         writer = csv.writer(buffer)
@@ -240,14 +267,28 @@ def validate(args: Namespace) -> int:
     subtrees = [n for n in tree if n.kind == "subtree"]
     leaf_types = sorted({n.type for n in tree if n.is_execution})
     if args.json:
-        _print_json({"file": args.tree, "main_tree": tree.name, "format": tree.format,
-                     "nodes": len(tree), "kinds": dict(kinds), "files": tree.files,
-                     "subtrees": [n.description for n in subtrees], "leaf_types": leaf_types})
+        _print_json(
+            {
+                "file": args.tree,
+                "main_tree": tree.name,
+                "format": tree.format,
+                "nodes": len(tree),
+                "kinds": dict(kinds),
+                "files": tree.files,
+                "subtrees": [n.description for n in subtrees],
+                "leaf_types": leaf_types,
+            }
+        )
         return 0
     print(f"{safe(args.tree)}: OK (BehaviorTree.CPP v{tree.format} format)")
     print(f"  main tree: {safe(tree.name)}; goal: {safe(tree.root.description)}")
-    print("  nodes: " + str(len(tree)) + " (" +
-          ", ".join(f"{count} {kind}" for kind, count in sorted(kinds.items())) + ")")
+    print(
+        "  nodes: "
+        + str(len(tree))
+        + " ("
+        + ", ".join(f"{count} {kind}" for kind, count in sorted(kinds.items()))
+        + ")"
+    )
     if subtrees:
         print("  subgoals: " + "; ".join(safe(n.description) for n in subtrees))
     print("  leaf types: " + "; ".join(safe(t) for t in leaf_types))

@@ -23,39 +23,82 @@ class BadInput(Exception):
 
 
 def _add_moment(parser: argparse.ArgumentParser, required: bool = True) -> None:
-    parser.add_argument("--at", metavar="WHEN", required=required, default=None if required
-                        else "end", help="moment: 12.5s, 1500ms, -2s, tick:N, seq:N, end, "
-                        "or an ISO-8601 wall time" + ("" if required else " (default: end)"))
+    parser.add_argument(
+        "--at",
+        metavar="WHEN",
+        required=required,
+        default=None if required else "end",
+        help="moment: 12.5s, 1500ms, -2s, tick:N, seq:N, end, "
+        "or an ISO-8601 wall time" + ("" if required else " (default: end)"),
+    )
 
 
 def build_parser() -> argparse.ArgumentParser:
     """The argument parser of every command."""
     parser = argparse.ArgumentParser(
-        prog="btlog", description="Record behavior-tree runs and explain any moment of them.")
+        prog="btlog", description="Record behavior-tree runs and explain any moment of them."
+    )
     parser.add_argument("--version", action="version", version=f"btlog {__version__}")
     commands = parser.add_subparsers(dest="command", metavar="COMMAND", required=True)
 
-    run = commands.add_parser("run", help="execute a tree and record the run",
-                              description="Execute a tree and record every event to MCAP.")
+    run = commands.add_parser(
+        "run",
+        help="execute a tree and record the run",
+        description="Execute a tree and record every event to MCAP.",
+    )
     run.add_argument("tree", metavar="TREE", help="BehaviorTree.CPP XML file")
-    run.add_argument("--domain", default="scripted",
-                     help="simulated domain: scripted (default), kitting, taxi")
+    run.add_argument(
+        "--domain", default="scripted", help="simulated domain: scripted (default), kitting, taxi"
+    )
     run.add_argument("--outcomes", metavar="F", help="outcomes file (YAML or JSON)")
-    run.add_argument("--fail", metavar="SPEC", action="append", default=[],
-                     help='fail a node\'s activation: "NAME" (first) or "NAME@N"')
-    run.add_argument("--failure-rate", metavar="P", type=float, default=0.0,
-                     help="probability that any activation fails (seeded; default 0)")
+    run.add_argument(
+        "--fail",
+        metavar="SPEC",
+        action="append",
+        default=[],
+        help='fail a node\'s activation: "NAME" (first) or "NAME@N"',
+    )
+    run.add_argument(
+        "--failure-rate",
+        metavar="P",
+        type=float,
+        default=0.0,
+        help="probability that any activation fails (seeded; default 0)",
+    )
     run.add_argument("--seed", metavar="N", type=int, default=0, help="random seed")
-    run.add_argument("--tick-period", metavar="S", type=float, default=0.1,
-                     help="seconds between ticks (default 0.1)")
-    run.add_argument("--max-ticks", metavar="N", type=int, default=100_000,
-                     help="stop (and halt the tree) after N ticks")
-    run.add_argument("--ask", metavar="WHEN=QUESTION", action="append", default=[],
-                     help='ask live, e.g. --ask "12.5s=Why are you doing this?"')
-    run.add_argument("--realtime", action="store_true",
-                     help="pace ticks to the wall clock instead of simulated time")
-    run.add_argument("--flush-interval", metavar="S", type=float, default=1.0,
-                     help="seconds between flushes to disk (default 1)")
+    run.add_argument(
+        "--tick-period",
+        metavar="S",
+        type=float,
+        default=0.1,
+        help="seconds between ticks (default 0.1)",
+    )
+    run.add_argument(
+        "--max-ticks",
+        metavar="N",
+        type=int,
+        default=100_000,
+        help="stop (and halt the tree) after N ticks",
+    )
+    run.add_argument(
+        "--ask",
+        metavar="WHEN=QUESTION",
+        action="append",
+        default=[],
+        help='ask live, e.g. --ask "12.5s=Why are you doing this?"',
+    )
+    run.add_argument(
+        "--realtime",
+        action="store_true",
+        help="pace ticks to the wall clock instead of simulated time",
+    )
+    run.add_argument(
+        "--flush-interval",
+        metavar="S",
+        type=float,
+        default=1.0,
+        help="seconds between flushes to disk (default 1)",
+    )
     run.add_argument("-o", "--output", metavar="OUT", help="recording file to write")
     run.add_argument("--quiet", action="store_true", help="print only the recording's path")
 
@@ -90,8 +133,11 @@ def build_parser() -> argparse.ArgumentParser:
     replay = commands.add_parser("replay", help="step through a run interactively")
     replay.add_argument("run", metavar="RUN")
     replay.add_argument("--plain", action="store_true", help="no colour")
-    replay.add_argument("--script", metavar="FILE",
-                        help="read commands from FILE instead of the keyboard ('-': stdin)")
+    replay.add_argument(
+        "--script",
+        metavar="FILE",
+        help="read commands from FILE instead of the keyboard ('-': stdin)",
+    )
 
     sql = commands.add_parser("sql", help="SQL over the read model")
     sql.add_argument("runs", metavar="RUN", nargs="+")
@@ -107,8 +153,11 @@ def build_parser() -> argparse.ArgumentParser:
     check = commands.add_parser("check", help="regression checks on stored runs")
     check.add_argument("runs", metavar="RUN", nargs="+")
     check.add_argument("--expect", metavar="F", help="expectations file (YAML)")
-    check.add_argument("--rerun", action="store_true",
-                       help="run the tree again with the recorded settings and compare")
+    check.add_argument(
+        "--rerun",
+        action="store_true",
+        help="run the tree again with the recorded settings and compare",
+    )
     check.add_argument("--tree", metavar="TREE", help="with --rerun: this tree file instead")
     check.add_argument("--json", action="store_true", help="JSON output")
 
@@ -126,10 +175,17 @@ def _handlers():
     from btlog.cli import checks, commands, replay
 
     return {
-        "run": commands.run, "ask": commands.ask, "explain": commands.explain,
-        "show": commands.show, "timeline": commands.timeline, "sql": commands.sql,
-        "recover": commands.recover, "validate": commands.validate,
-        "replay": replay.replay, "diff": checks.diff, "check": checks.check,
+        "run": commands.run,
+        "ask": commands.ask,
+        "explain": commands.explain,
+        "show": commands.show,
+        "timeline": commands.timeline,
+        "sql": commands.sql,
+        "recover": commands.recover,
+        "validate": commands.validate,
+        "replay": replay.replay,
+        "diff": checks.diff,
+        "check": checks.check,
     }
 
 
@@ -139,8 +195,7 @@ def _is_bad_input(error: BaseException) -> bool:
 
     from btlog.executor.behavior import NodeExecutionError
 
-    return isinstance(error, ValueError | OSError | BadInput | duckdb.Error |
-                      NodeExecutionError)
+    return isinstance(error, ValueError | OSError | BadInput | duckdb.Error | NodeExecutionError)
 
 
 def _one_line(error: BaseException) -> str:

@@ -20,9 +20,11 @@ from btlog.explain.hierarchy import current_nodes
 from btlog.explain.questions import UnknownQuestion, answer, explain
 from btlog.render.terminal import blackboard_lines, format_ns, make_console, tree_lines
 
-HELP = ("commands: n [K] next K events | p [K] previous K events | t [K] next K ticks | "
-        "T [K] previous K ticks | f S forward S seconds | b S back S seconds | g WHEN go to "
-        "a moment | ask QUESTION | bb toggle blackboard | h help | q quit")
+HELP = (
+    "commands: n [K] next K events | p [K] previous K events | t [K] next K ticks | "
+    "T [K] previous K ticks | f S forward S seconds | b S back S seconds | g WHEN go to "
+    "a moment | ask QUESTION | bb toggle blackboard | h help | q quit"
+)
 
 
 class Stepper:
@@ -63,8 +65,11 @@ class Stepper:
         """Print the position, the tree, and Q1–Q6."""
         tree, state = self.state()
         console = self.console
-        console.print(f"── event {self.position}/{self.total}  seq {state.seq - 1}  "
-                      f"tick {state.tick}  {format_ns(state.t_ns)}", highlight=False)
+        console.print(
+            f"── event {self.position}/{self.total}  seq {state.seq - 1}  "
+            f"tick {state.tick}  {format_ns(state.t_ns)}",
+            highlight=False,
+        )
         current = {n.uid for n in current_nodes(tree, state)}
         for line in tree_lines(tree, state, current):
             console.print(line)
@@ -101,12 +106,14 @@ def _apply(stepper: Stepper, line: str) -> bool:
     """Run one command; False to quit."""
     parts = line.strip().split(maxsplit=1)
     word = parts[0] if parts else "n"
-    moves = {"n": lambda: stepper.move_events(int(_count(parts))),
-             "p": lambda: stepper.move_events(-int(_count(parts))),
-             "t": lambda: stepper.move_ticks(int(_count(parts))),
-             "T": lambda: stepper.move_ticks(-int(_count(parts))),
-             "f": lambda: stepper.move_seconds(_count(parts)),
-             "b": lambda: stepper.move_seconds(-_count(parts))}
+    moves = {
+        "n": lambda: stepper.move_events(int(_count(parts))),
+        "p": lambda: stepper.move_events(-int(_count(parts))),
+        "t": lambda: stepper.move_ticks(int(_count(parts))),
+        "T": lambda: stepper.move_ticks(-int(_count(parts))),
+        "f": lambda: stepper.move_seconds(_count(parts)),
+        "b": lambda: stepper.move_seconds(-_count(parts)),
+    }
     if word in ("q", "quit", "exit"):
         return False
     if word in ("h", "help", "?"):
@@ -116,8 +123,9 @@ def _apply(stepper: Stepper, line: str) -> bool:
         stepper.render()
     elif word == "ask":
         tree, state = stepper.state()
-        stepper.console.print(answer(tree, state, parts[1] if len(parts) > 1 else "").text,
-                              highlight=False)
+        stepper.console.print(
+            answer(tree, state, parts[1] if len(parts) > 1 else "").text, highlight=False
+        )
     elif word == "g" and len(parts) > 1:
         stepper.go(parts[1])
         stepper.render()

@@ -31,5 +31,6 @@ class Domain:
 
     def leaf_factory(self, tree: Tree, outcomes: Outcomes) -> LeafFactory:
         """The executor's factory for this domain's leaves."""
-        return scripted_leaf_factory(tree, outcomes, self.seed, effects=self.effect,
-                                     durations=self.duration)
+        return scripted_leaf_factory(
+            tree, outcomes, self.seed, effects=self.effect, durations=self.duration
+        )

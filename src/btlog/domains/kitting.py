@@ -19,16 +19,34 @@ from btlog.tree.model import Node
 
 #: Seconds each skill takes (types not listed take 0.5 s).
 DURATIONS = {
-    "move to": 4.0, "lift torso": 1.0, "look at chuck roughly": 0.8, "look at table": 0.8,
-    "detect chuck": 1.5, "detect screw": 1.5, "detect caddy": 1.5,
-    "convert to insertion pose": 0.1, "convert to grasp pose": 0.1, "scan scene": 2.0,
-    "attach large gear to scene": 0.2, "remove large gear from scene": 0.2, "look at": 0.8,
-    "reach": 2.0, "trial and error insert": 5.0, "retreat arm": 2.0, "open gripper": 0.5,
-    "close gripper": 0.5, "allow partial collision": 0.1, "check grasped": 0.3, "ask": 1.0,
+    "move to": 4.0,
+    "lift torso": 1.0,
+    "look at chuck roughly": 0.8,
+    "look at table": 0.8,
+    "detect chuck": 1.5,
+    "detect screw": 1.5,
+    "detect caddy": 1.5,
+    "convert to insertion pose": 0.1,
+    "convert to grasp pose": 0.1,
+    "scan scene": 2.0,
+    "attach large gear to scene": 0.2,
+    "remove large gear from scene": 0.2,
+    "look at": 0.8,
+    "reach": 2.0,
+    "trial and error insert": 5.0,
+    "retreat arm": 2.0,
+    "open gripper": 0.5,
+    "close gripper": 0.5,
+    "allow partial collision": 0.1,
+    "check grasped": 0.3,
+    "ask": 1.0,
 }
 #: Where each detector finds its object (x, y, z in metres, map frame).
-OBJECTS = {"detect chuck": (1.20, -0.40, 0.95), "detect screw": (0.85, 0.30, 0.78),
-           "detect caddy": (0.60, -0.25, 0.80)}
+OBJECTS = {
+    "detect chuck": (1.20, -0.40, 0.95),
+    "detect screw": (0.85, 0.30, 0.78),
+    "detect caddy": (0.60, -0.25, 0.80),
+}
 INSERTION_OFFSET = (-0.05, 0.0, 0.02)
 
 
@@ -55,8 +73,12 @@ class KittingDomain(Domain):
             return status
         rng = random.Random(f"{self.seed}/{leaf.uid}/{leaf.activations}")
         x, y, z = OBJECTS[leaf.node.type]
-        pose = {"frame": "map", "x": round(x + rng.uniform(-0.01, 0.01), 4),
-                "y": round(y + rng.uniform(-0.01, 0.01), 4), "z": z}
+        pose = {
+            "frame": "map",
+            "x": round(x + rng.uniform(-0.01, 0.01), 4),
+            "y": round(y + rng.uniform(-0.01, 0.01), 4),
+            "z": z,
+        }
         if "part" in leaf.node.ports:
             pose["part"] = leaf.get_input("part")
         leaf.set_output("output", pose)
@@ -73,8 +95,9 @@ class KittingDomain(Domain):
             dx, dy, dz = INSERTION_OFFSET
         else:
             dx, dy, dz = 0.0, 0.0, leaf.get_input("shift_z", "float")
-        pose.update(x=round(pose["x"] + dx, 4), y=round(pose["y"] + dy, 4),
-                    z=round(pose["z"] + dz, 4))
+        pose.update(
+            x=round(pose["x"] + dx, 4), y=round(pose["y"] + dy, 4), z=round(pose["z"] + dz, 4)
+        )
         leaf.set_output("output", pose)
         return SUCCESS
 

@@ -85,8 +85,9 @@ def _parse_entry(value: Any, base: Outcome, where: str) -> Outcome:
     if "duration" in value:
         duration = value["duration"]
         if not isinstance(duration, int | float) or isinstance(duration, bool) or duration < 0:
-            raise OutcomesError(f"{where}: duration must be a number of seconds >= 0, "
-                                f"got {duration!r}")
+            raise OutcomesError(
+                f"{where}: duration must be a number of seconds >= 0, got {duration!r}"
+            )
         outcome = replace(outcome, duration_ns=round(duration * 1e9), ticks=None)
     if "ticks" in value:
         ticks = value["ticks"]
@@ -109,8 +110,9 @@ def _status(value: Any, where: str) -> Status:
 class Outcomes:
     """A parsed outcomes file: the default, the per-key scripts, and failure overrides."""
 
-    default: Outcome = field(default_factory=lambda: _parse_entry(DEFAULT_ACTION, Outcome(),
-                                                                    "default"))
+    default: Outcome = field(
+        default_factory=lambda: _parse_entry(DEFAULT_ACTION, Outcome(), "default")
+    )
     condition_default: Outcome = field(default_factory=Outcome)
     scripts: dict[str, list[Any]] = field(default_factory=dict)
     failures: list[FailSpec] = field(default_factory=list)
@@ -126,8 +128,9 @@ class Outcomes:
             raise OutcomesError(f"{where}: the top level must be a mapping")
         unknown = set(data) - {"default", "nodes"}
         if unknown:
-            raise OutcomesError(f"{where}: unknown key {sorted(unknown)[0]!r} "
-                                "(expected default and nodes)")
+            raise OutcomesError(
+                f"{where}: unknown key {sorted(unknown)[0]!r} (expected default and nodes)"
+            )
         outcomes = cls(source=data)
         if "default" in data:
             outcomes.default = _parse_entry(data["default"], Outcome(), f"{where}: default")
@@ -156,8 +159,9 @@ class Outcomes:
         except (json.JSONDecodeError, yaml.YAMLError) as error:
             mark = getattr(error, "problem_mark", None)
             line = f":{mark.line + 1}" if mark is not None else ""
-            raise OutcomesError(f"{path}{line}: not valid YAML/JSON: "
-                                f"{str(error).splitlines()[0]}") from None
+            raise OutcomesError(
+                f"{path}{line}: not valid YAML/JSON: {str(error).splitlines()[0]}"
+            ) from None
         return cls.from_mapping(data, str(path))
 
     def check_keys(self, tree: Tree) -> None:
@@ -190,9 +194,17 @@ class ScriptedLeaf(StatefulAction):
     may change the result.
     """
 
-    def __init__(self, node: Node, runtime: Runtime, board: Blackboard, plan: list[Outcome],
-                 forced: set[int], rng: random.Random | None, failure_rate: float,
-                 effect: Effect | None = None) -> None:
+    def __init__(
+        self,
+        node: Node,
+        runtime: Runtime,
+        board: Blackboard,
+        plan: list[Outcome],
+        forced: set[int],
+        rng: random.Random | None,
+        failure_rate: float,
+        effect: Effect | None = None,
+    ) -> None:
         super().__init__(node, runtime, board)
         self.kind = node.kind
         self.plan = plan
@@ -217,8 +229,8 @@ class ScriptedLeaf(StatefulAction):
         self.activations += 1
         outcome = self.plan[min(self.activations, len(self.plan)) - 1]
         if self.activations in self.forced or (
-                self.failure_rate > 0 and self.rng is not None
-                and self.rng.random() < self.failure_rate):
+            self.failure_rate > 0 and self.rng is not None and self.rng.random() < self.failure_rate
+        ):
             outcome = replace(outcome, status=FAILURE)
         self.outcome = outcome
         if outcome.ticks:
@@ -246,9 +258,13 @@ class ScriptedLeaf(StatefulAction):
         return status
 
 
-def scripted_leaf_factory(tree: Tree, outcomes: Outcomes, seed: int | None = None,
-                          effects: Callable[[Node], Effect | None] | None = None,
-                          durations: Callable[[Node], Outcome | None] | None = None):
+def scripted_leaf_factory(
+    tree: Tree,
+    outcomes: Outcomes,
+    seed: int | None = None,
+    effects: Callable[[Node], Effect | None] | None = None,
+    durations: Callable[[Node], Outcome | None] | None = None,
+):
     """A ``leaf_factory`` for the executor building ``ScriptedLeaf``s from ``outcomes``.
 
     ``durations`` lets a domain give per-type defaults where the outcomes say nothing.
@@ -261,13 +277,23 @@ def scripted_leaf_factory(tree: Tree, outcomes: Outcomes, seed: int | None = Non
             domain_default = durations(node)
             if domain_default is not None and not _has_explicit_script(node, tree, outcomes):
                 plan = [domain_default]
-        return ScriptedLeaf(node, runtime, board, plan, outcomes.forced_failures(node, tree),
-                            rng, outcomes.failure_rate,
-                            effects(node) if effects is not None else None)
+        return ScriptedLeaf(
+            node,
+            runtime,
+            board,
+            plan,
+            outcomes.forced_failures(node, tree),
+            rng,
+            outcomes.failure_rate,
+            effects(node) if effects is not None else None,
+        )
 
     return factory
 
 
 def _has_explicit_script(node: Node, tree: Tree, outcomes: Outcomes) -> bool:
-    return any(key in outcomes.scripts and node in tree.find(key)
-               for key in (node.path, node.name, node.type) if key)
+    return any(
+        key in outcomes.scripts and node in tree.find(key)
+        for key in (node.path, node.name, node.type)
+        if key
+    )

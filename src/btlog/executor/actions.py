@@ -26,8 +26,9 @@ from btlog.tree.model import INOUT, INPUT, OUTPUT
 from btlog.tree.registry import PortSpec
 
 
-def InputPort(type_name: str = "str", default: str | None = None,
-              description: str = "") -> PortSpec:
+def InputPort(
+    type_name: str = "str", default: str | None = None, description: str = ""
+) -> PortSpec:
     """Declare an input port of a leaf."""
     return PortSpec(INPUT, type_name, default, description)
 
@@ -194,5 +195,13 @@ ACTIONS: dict[str, type[Behavior]] = {
     "Sleep": Sleep,
 }
 
-__all__ = ["ACTIONS", "SKIPPED", "Condition", "InoutPort", "InputPort", "OutputPort",
-           "StatefulAction", "SyncAction"]
+__all__ = [
+    "ACTIONS",
+    "SKIPPED",
+    "Condition",
+    "InoutPort",
+    "InputPort",
+    "OutputPort",
+    "StatefulAction",
+    "SyncAction",
+]

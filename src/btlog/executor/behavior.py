@@ -38,8 +38,16 @@ class NodeExecutionError(RuntimeError):
 class _Conditions:
     """The compiled pre/post-condition scripts of one node."""
 
-    __slots__ = ("failure_if", "on_failure", "on_halted", "on_success", "post", "skip_if",
-                 "success_if", "while_")
+    __slots__ = (
+        "failure_if",
+        "on_failure",
+        "on_halted",
+        "on_success",
+        "post",
+        "skip_if",
+        "success_if",
+        "while_",
+    )
 
     def __init__(self, attributes: dict[str, str]) -> None:
         def compiled(name: str) -> Callable | None:
@@ -56,8 +64,16 @@ class _Conditions:
         self.on_halted = compiled("_onHalted")
 
 
-_CONDITION_ATTRIBUTES = ("_failureIf", "_successIf", "_skipIf", "_while", "_onSuccess",
-                         "_onFailure", "_post", "_onHalted")
+_CONDITION_ATTRIBUTES = (
+    "_failureIf",
+    "_successIf",
+    "_skipIf",
+    "_while",
+    "_onSuccess",
+    "_onFailure",
+    "_post",
+    "_onHalted",
+)
 
 
 class Behavior:
@@ -123,15 +139,20 @@ class Behavior:
     def _check_preconditions(self, conditions: _Conditions) -> Status | None:
         status = self.status
         if status is IDLE or status is SKIPPED:
-            for script, result in ((conditions.failure_if, FAILURE),
-                                   (conditions.success_if, SUCCESS),
-                                   (conditions.skip_if, SKIPPED)):
+            for script, result in (
+                (conditions.failure_if, FAILURE),
+                (conditions.success_if, SUCCESS),
+                (conditions.skip_if, SKIPPED),
+            ):
                 if script is not None and truthy(self._run_script(script)):
                     return result
             if conditions.while_ is not None and not truthy(self._run_script(conditions.while_)):
                 return SKIPPED
-        elif status is RUNNING and conditions.while_ is not None \
-                and not truthy(self._run_script(conditions.while_)):
+        elif (
+            status is RUNNING
+            and conditions.while_ is not None
+            and not truthy(self._run_script(conditions.while_))
+        ):
             self.halt_node()
             return SKIPPED
         return None
@@ -221,8 +242,9 @@ class Behavior:
         """Write an output port's blackboard entry."""
         key, raw = self._port(name)
         if key is None:
-            raise NodeExecutionError(self.node, f"output port {name!r} must be a {{key}}, "
-                                                f"not {raw!r}")
+            raise NodeExecutionError(
+                self.node, f"output port {name!r} must be a {{key}}, not {raw!r}"
+            )
         self.blackboard.set(key, value)
 
     @property

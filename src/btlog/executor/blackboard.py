@@ -21,8 +21,13 @@ WriteSink = Callable[[str, str, Any, int | None], None]
 class Blackboard:
     """One scope of entries; ``scope`` is the subtree path ("" for the main tree)."""
 
-    def __init__(self, scope: str = "", parent: Blackboard | None = None,
-                 remap: dict[str, str] | None = None, autoremap: bool = False) -> None:
+    def __init__(
+        self,
+        scope: str = "",
+        parent: Blackboard | None = None,
+        remap: dict[str, str] | None = None,
+        autoremap: bool = False,
+    ) -> None:
         self.scope = scope
         self.parent = parent
         self.remap = remap or {}

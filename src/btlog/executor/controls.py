@@ -210,7 +210,8 @@ class Parallel(ControlBehavior):
                     self.completed.add(index)
                     self.failures += 1
             if self.successes >= required_success or (
-                    success_value < 0 and self.successes + skipped >= required_success):
+                success_value < 0 and self.successes + skipped >= required_success
+            ):
                 self._clear()
                 self.reset_children()
                 return SUCCESS
@@ -356,8 +357,7 @@ class Switch(ControlBehavior):
             return self.cases
         for index in range(self.cases):
             name = f"case_{index + 1}"
-            if self.has_port(name) and _switch_equal(variable,
-                                                      _text(self.get_input(name, "any"))):
+            if self.has_port(name) and _switch_equal(variable, _text(self.get_input(name, "any"))):
                 return index
         return self.cases
 

@@ -153,8 +153,9 @@ class Precondition(DecoratorBehavior):
     def __init__(self, *args) -> None:
         super().__init__(*args)
         self.children_running = False
-        self._script = compile_script(self.node.ports["if"].value) \
-            if "if" in self.node.ports else None
+        self._script = (
+            compile_script(self.node.ports["if"].value) if "if" in self.node.ports else None
+        )
 
     def tick(self) -> Status:
         otherwise = self.get_input("else", "status")

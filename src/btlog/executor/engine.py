@@ -49,9 +49,13 @@ class Executor:
     simulated run); without one, such a tree is refused.
     """
 
-    def __init__(self, tree: Tree, registry: Registry | None = None,
-                 clock: SimClock | WallClock | None = None,
-                 leaf_factory: LeafFactory | None = None) -> None:
+    def __init__(
+        self,
+        tree: Tree,
+        registry: Registry | None = None,
+        clock: SimClock | WallClock | None = None,
+        leaf_factory: LeafFactory | None = None,
+    ) -> None:
         self.tree = tree
         self.registry = registry or Registry()
         self.runtime = Runtime(clock or SimClock())
@@ -144,6 +148,7 @@ class Executor:
                 t = now()
                 for handler in handlers:
                     handler(seq, t, runtime.tick, uid, prev, new)
+
         runtime.emit_status = emit
 
     def _on_write(self, scope: str, key: str, value: Any, writer: int | None) -> None:
@@ -189,8 +194,9 @@ class Executor:
                 subscriber.on_tick(record)
         return status
 
-    def run(self, max_ticks: int | None = None,
-            before_tick: Callable[[Executor], None] | None = None) -> Status:
+    def run(
+        self, max_ticks: int | None = None, before_tick: Callable[[Executor], None] | None = None
+    ) -> Status:
         """Tick until the root completes or ``max_ticks``; a run stopped by the limit halts
         the tree. Returns the last root status."""
         status = IDLE
@@ -237,8 +243,9 @@ class Executor:
         return boards
 
     # -- mutation ----------------------------------------------------------------------
-    def insert_after(self, parent_uid: int, after_uid: int | None, source: Node,
-                     question: str = "") -> TreeMutation:
+    def insert_after(
+        self, parent_uid: int, after_uid: int | None, source: Node, question: str = ""
+    ) -> TreeMutation:
         """Insert a deep copy of ``source`` (fresh uids) under ``parent_uid`` right after
         ``after_uid``, while running; the parent finds the new child dynamically."""
         parent = self.tree.node(parent_uid)
@@ -253,9 +260,16 @@ class Executor:
         behavior = self._build(copy, board)
         parent_behavior.insert_child(index, behavior)
         self.seq += 1
-        mutation = TreeMutation(seq, self.runtime.clock.now_ns(), self.runtime.tick, "insert",
-                                parent_uid, after_uid, [n.describe() for n in copy.walk()],
-                                question)
+        mutation = TreeMutation(
+            seq,
+            self.runtime.clock.now_ns(),
+            self.runtime.tick,
+            "insert",
+            parent_uid,
+            after_uid,
+            [n.describe() for n in copy.walk()],
+            question,
+        )
         for subscriber in self.subscribers:
             subscriber.on_mutation(mutation)
         return mutation

@@ -32,13 +32,16 @@ class Environment(Protocol):
     def exists(self, key: str) -> bool: ...
 
 
-_TOKEN = re.compile(r"""
+_TOKEN = re.compile(
+    r"""
     (?P<ws>\s+)
   | (?P<num>0[xX][0-9a-fA-F]+|\d+\.\d*(?:[eE][-+]?\d+)?|\.\d+(?:[eE][-+]?\d+)?|\d+(?:[eE][-+]?\d+)?)
   | (?P<str>'[^']*'|"[^"]*")
   | (?P<op>:=|\+=|-=|\*=|/=|==|!=|<=|>=|&&|\|\||\.\.|[-+*/<>=!?:;()&|^~])
   | (?P<id>@?[A-Za-z_][A-Za-z0-9_]*)
-""", re.VERBOSE)
+""",
+    re.VERBOSE,
+)
 
 _WORD_OPS = {"and": "&&", "or": "||", "not": "!"}
 Expr = Callable[[Environment], Any]
@@ -101,6 +104,7 @@ def _compare(op: str) -> Callable[[Any, Any], bool]:
         if op == ">":
             return a > b
         return a >= b
+
     return compare
 
 
@@ -126,15 +130,25 @@ _BINARY: dict[str, Callable[[Any, Any], Any]] = {
     "..": lambda a, b: _text(a) + _text(b),
     "==": _equal,
     "!=": lambda a, b: not _equal(a, b),
-    "<": _compare("<"), "<=": _compare("<="), ">": _compare(">"), ">=": _compare(">="),
+    "<": _compare("<"),
+    "<=": _compare("<="),
+    ">": _compare(">"),
+    ">=": _compare(">="),
     "&": lambda a, b: int(_to_number(a)) & int(_to_number(b)),
     "|": lambda a, b: int(_to_number(a)) | int(_to_number(b)),
     "^": lambda a, b: int(_to_number(a)) ^ int(_to_number(b)),
 }
 # BT.CPP's order, loosest first: logic, comparisons, then bitwise binding tighter than
 # comparisons (unlike C), then arithmetic.
-_PRECEDENCE = [("||",), ("&&",), ("==", "!=", "<", "<=", ">", ">="), ("|", "^"), ("&",),
-               ("+", "-", ".."), ("*", "/")]
+_PRECEDENCE = [
+    ("||",),
+    ("&&",),
+    ("==", "!=", "<", "<=", ">", ">="),
+    ("|", "^"),
+    ("&",),
+    ("+", "-", ".."),
+    ("*", "/"),
+]
 _COMPARISONS = 2
 
 
@@ -231,6 +245,7 @@ class _Parser:
         def chain(env: Environment) -> bool:
             values = [operand(env) for operand in operands]
             return all(f(values[i], values[i + 1]) for i, f in enumerate(functions))
+
         return chain
 
     def unary(self) -> Expr:
@@ -296,6 +311,7 @@ def _assignment(key: str, op: str, value: Expr) -> Expr:
             new = _BINARY[op[0]](env.get(key), new)
         env.set(key, new)
         return new
+
     return assign
 
 
@@ -311,4 +327,5 @@ def compile_script(code: str) -> Callable[[Environment], Any]:
         for statement in statements:
             result = statement(env)
         return result
+
     return run

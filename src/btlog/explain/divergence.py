@@ -94,19 +94,33 @@ class ExecutedAction:
 
     def to_json(self) -> dict:
         """JSON-ready form."""
-        return {"seq": self.seq, "uid": self.uid, "action": self.description,
-                "type": self.type, "kind": self.kind, "parent": self.parent,
-                "parent_uid": self.parent_uid, "subgoal": self.subgoal, "result": self.result}
+        return {
+            "seq": self.seq,
+            "uid": self.uid,
+            "action": self.description,
+            "type": self.type,
+            "kind": self.kind,
+            "parent": self.parent,
+            "parent_uid": self.parent_uid,
+            "subgoal": self.subgoal,
+            "result": self.result,
+        }
 
 
 def _action(seq: int, node: Node, tree: Tree) -> ExecutedAction:
     """The executed action of ``node`` starting at event ``seq``."""
     subgoal = subgoal_node(node) or tree.root
     parent = node.parent
-    return ExecutedAction(seq=seq, uid=node.uid, description=node.description, type=node.type,
-                          kind=node.kind, parent=parent.description if parent else "",
-                          parent_uid=parent.uid if parent else None,
-                          subgoal=subgoal.description)
+    return ExecutedAction(
+        seq=seq,
+        uid=node.uid,
+        description=node.description,
+        type=node.type,
+        kind=node.kind,
+        parent=parent.description if parent else "",
+        parent_uid=parent.uid if parent else None,
+        subgoal=subgoal.description,
+    )
 
 
 def actions_from_events(tree: Tree, events: Iterable) -> list[ExecutedAction]:
@@ -157,10 +171,10 @@ def nominal_actions(tree_path: str | os.PathLike) -> list[ExecutedAction]:
     from btlog.tree.loader import load_tree
 
     tree = load_tree(os.fspath(tree_path))
-    outcomes = Outcomes.from_mapping({"default": {"status": "SUCCESS", "duration": 0}},
-                                     "nominal outcomes")
-    executor = Executor(tree, clock=SimClock(),
-                        leaf_factory=scripted_leaf_factory(tree, outcomes))
+    outcomes = Outcomes.from_mapping(
+        {"default": {"status": "SUCCESS", "duration": 0}}, "nominal outcomes"
+    )
+    executor = Executor(tree, clock=SimClock(), leaf_factory=scripted_leaf_factory(tree, outcomes))
     log = EventLog()
     executor.subscribe(log)
     try:
@@ -204,8 +218,11 @@ class Row:
 
     def to_json(self) -> dict:
         """JSON-ready form."""
-        return {"op": self.op, "a": self.a.to_json() if self.a else None,
-                "b": self.b.to_json() if self.b else None}
+        return {
+            "op": self.op,
+            "a": self.a.to_json() if self.a else None,
+            "b": self.b.to_json() if self.b else None,
+        }
 
 
 @dataclass(frozen=True)
@@ -282,9 +299,10 @@ class SubgoalDivergence:
             if starts:
                 start = starts.pop(0)
                 low, high = sorted((start, position))
-                past = tuple(r.a.description for r in self.rows[low + 1:high] if r.op == "equal")
-                moves.append(Move(row.b.description, "later" if start < position else "earlier",
-                                  past))
+                past = tuple(r.a.description for r in self.rows[low + 1 : high] if r.op == "equal")
+                moves.append(
+                    Move(row.b.description, "later" if start < position else "earlier", past)
+                )
         return moves
 
     @property
@@ -296,17 +314,29 @@ class SubgoalDivergence:
         """JSON-ready form."""
         listed = [_divergent_json(row) for row in self.rows if row.op == "only_a"]
         listed += [_divergent_json(row) for row in self.rows if row.op == "only_b"]
-        return {"subgoal": self.subgoal, "edit_distance": self.edit_distance,
-                "lcs": list(self.lcs), "lcs_length": len(self.lcs),
-                "a_count": len(self.a_actions), "b_count": len(self.b_actions),
-                "divergent": listed, "moved": [m.to_json() for m in self.moves],
-                "rows": [row.to_json() for row in self.rows]}
+        return {
+            "subgoal": self.subgoal,
+            "edit_distance": self.edit_distance,
+            "lcs": list(self.lcs),
+            "lcs_length": len(self.lcs),
+            "a_count": len(self.a_actions),
+            "b_count": len(self.b_actions),
+            "divergent": listed,
+            "moved": [m.to_json() for m in self.moves],
+            "rows": [row.to_json() for row in self.rows],
+        }
 
 
 def _divergent_json(row: Row) -> dict:
     side, action, index = ("a", row.a, row.a_index) if row.a else ("b", row.b, row.b_index)
-    return {"side": side, "index": index, "action": action.description,
-            "parent": action.parent, "seq": action.seq, "uid": action.uid}
+    return {
+        "side": side,
+        "index": index,
+        "action": action.description,
+        "parent": action.parent,
+        "seq": action.seq,
+        "uid": action.uid,
+    }
 
 
 @dataclass(frozen=True)
@@ -347,8 +377,9 @@ def _group(actions: Sequence[ExecutedAction]) -> dict[str, list[ExecutedAction]]
     return groups
 
 
-def _rows(comparison: Comparison, a: Sequence[ExecutedAction],
-          b: Sequence[ExecutedAction]) -> tuple[Row, ...]:
+def _rows(
+    comparison: Comparison, a: Sequence[ExecutedAction], b: Sequence[ExecutedAction]
+) -> tuple[Row, ...]:
     rows = []
     for pair in comparison.alignment:
         left = a[pair.a_index] if pair.a_index is not None else None
@@ -358,15 +389,20 @@ def _rows(comparison: Comparison, a: Sequence[ExecutedAction],
     return tuple(rows)
 
 
-def compare_subgoal(subgoal: str, a: Sequence[ExecutedAction],
-                    b: Sequence[ExecutedAction]) -> SubgoalDivergence:
+def compare_subgoal(
+    subgoal: str, a: Sequence[ExecutedAction], b: Sequence[ExecutedAction]
+) -> SubgoalDivergence:
     """Compare one subgoal's actions of A and B by description (O(NP))."""
     comparison = compare([x.description for x in a], [x.description for x in b])
     return SubgoalDivergence(subgoal, tuple(a), tuple(b), comparison, _rows(comparison, a, b))
 
 
-def diverge(a_actions: Sequence[ExecutedAction], b_actions: Sequence[ExecutedAction],
-            a_label: str = "A", b_label: str = "B") -> Divergence:
+def diverge(
+    a_actions: Sequence[ExecutedAction],
+    b_actions: Sequence[ExecutedAction],
+    a_label: str = "A",
+    b_label: str = "B",
+) -> Divergence:
     """Compare two behaviours subgoal by subgoal.
 
     Subgoals come in order of first appearance in A, then those only B has. A subgoal
@@ -374,17 +410,22 @@ def diverge(a_actions: Sequence[ExecutedAction], b_actions: Sequence[ExecutedAct
     """
     groups_a, groups_b = _group(a_actions), _group(b_actions)
     names = list(dict.fromkeys([*groups_a, *groups_b]))
-    subgoals = tuple(compare_subgoal(name, groups_a.get(name, []), groups_b.get(name, []))
-                     for name in names)
+    subgoals = tuple(
+        compare_subgoal(name, groups_a.get(name, []), groups_b.get(name, [])) for name in names
+    )
     return Divergence(a_label, b_label, subgoals)
 
 
 # -- output --------------------------------------------------------------------------------
 def to_json(divergence: Divergence) -> dict:
     """The divergence as a JSON-ready dict (``btlog diff --json``)."""
-    return {"a": divergence.a_label, "b": divergence.b_label,
-            "edit_distance": divergence.edit_distance, "identical": divergence.identical,
-            "subgoals": [s.to_json() for s in divergence.subgoals]}
+    return {
+        "a": divergence.a_label,
+        "b": divergence.b_label,
+        "edit_distance": divergence.edit_distance,
+        "identical": divergence.identical,
+        "subgoals": [s.to_json() for s in divergence.subgoals],
+    }
 
 
 def _cell(action: ExecutedAction | None, divergent: bool) -> str:
@@ -398,24 +439,27 @@ def _cell(action: ExecutedAction | None, divergent: bool) -> str:
 
 def subgoal_header(found: SubgoalDivergence) -> str:
     """One line: the subgoal with its edit distance and LCS length."""
-    line = (f'subgoal "{safe(found.subgoal)}": edit distance {found.edit_distance}, '
-            f"LCS length {len(found.lcs)} ({len(found.a_actions)} vs "
-            f"{len(found.b_actions)} actions)")
+    line = (
+        f'subgoal "{safe(found.subgoal)}": edit distance {found.edit_distance}, '
+        f"LCS length {len(found.lcs)} ({len(found.a_actions)} vs "
+        f"{len(found.b_actions)} actions)"
+    )
     if found.moves:
         line += "; " + "; ".join(move.text() for move in found.moves)
     return line
 
 
-def render_lines(divergence: Divergence,
-                 only_divergent: bool = False) -> list[tuple[str, str]]:
+def render_lines(divergence: Divergence, only_divergent: bool = False) -> list[tuple[str, str]]:
     """The side-by-side report as ``(text, kind)`` lines; kind is "title", "header",
     "row", "divergent", "blank" or "summary" (for styling). Divergent rows start with
     ``!``; the missing side is blank. ``only_divergent`` leaves out the rows of subgoals
     that agree."""
     cells = [(_cell(r.a, r.divergent), r) for s in divergence.subgoals for r in s.rows]
     width = max([len(c) for c, _ in cells] + [len(safe(divergence.a_label)) + 3, 20])
-    lines = [(f"A: {safe(divergence.a_label)}", "title"),
-             (f"B: {safe(divergence.b_label)}", "title")]
+    lines = [
+        (f"A: {safe(divergence.a_label)}", "title"),
+        (f"B: {safe(divergence.b_label)}", "title"),
+    ]
     for found in divergence.subgoals:
         lines.append(("", "blank"))
         lines.append((subgoal_header(found), "header"))
@@ -437,8 +481,10 @@ def _summary(divergence: Divergence) -> str:
     if divergence.identical:
         return f"no divergence in {count} subgoal{'s' if count != 1 else ''}"
     diverging = len(divergence.divergent_subgoals)
-    return (f"total edit distance {divergence.edit_distance}: {diverging} of {count} "
-            f"subgoal{'s' if count != 1 else ''} diverge")
+    return (
+        f"total edit distance {divergence.edit_distance}: {diverging} of {count} "
+        f"subgoal{'s' if count != 1 else ''} diverge"
+    )
 
 
 def render(divergence: Divergence, only_divergent: bool = False) -> str:

@@ -50,8 +50,7 @@ def _fallback_sentence(fallback: Node, state: State) -> str | None:
     leaf = failed_leaf(first, state, since) or first
     text = f"I could not {fallback.description} because "
     parent = leaf.parent
-    if parent is not None and parent is not fallback \
-            and parent.description != fallback.description:
+    if parent is not None and parent is not fallback and parent.description != fallback.description:
         text += f"I was unable to {parent.description} as "
     return text + f"{leaf.description} failed."
 
@@ -88,8 +87,11 @@ def what_went_wrong(node: Node | None, state: State) -> str:
         if ancestor.type in FALLBACK_TYPES:
             sentence = _fallback_sentence(ancestor, state)
             if sentence is not None:
-                retries = [_retry_attempt(a, state) for a in _up_to_subgoal(ancestor)
-                           if a.type == RETRY_TYPE]
+                retries = [
+                    _retry_attempt(a, state)
+                    for a in _up_to_subgoal(ancestor)
+                    if a.type == RETRY_TYPE
+                ]
                 return " ".join([*(r for r in retries if r), sentence])
         elif ancestor.type == RETRY_TYPE:
             sentence = _retry_sentence(ancestor, state)

@@ -33,8 +33,12 @@ class InsertionPlan:
 
     def to_json(self) -> dict:
         """The plan as uids."""
-        return {"requested_uid": self.requested.uid, "source_uid": self.source.uid,
-                "parent_uid": self.parent.uid, "after_uid": self.after.uid}
+        return {
+            "requested_uid": self.requested.uid,
+            "source_uid": self.source.uid,
+            "parent_uid": self.parent.uid,
+            "after_uid": self.after.uid,
+        }
 
 
 def find_requested(tree: Tree, wanted: str) -> Node | None:

@@ -35,25 +35,34 @@ QUESTIONS = {
 EXPLAIN_INTENTS = ("doing", "why", "subgoal", "goal", "how_subgoal", "how_goal", "wrong")
 
 _YOU = r"(?:you|u)"
-_PATTERNS: list[tuple[str, re.Pattern]] = [(intent, re.compile(p)) for intent, p in [
-    ("can", rf"^(?:can|could|will|would) {_YOU} (?:please )?(?P<what>.+)$"),
-    ("doing", rf"^what (?:are|r) {_YOU} (?:doing|up to)(?: now| right now)?$"),
-    ("doing", r"^what is (?:happening|going on)(?: now)?$"),
-    ("doing", rf"^what do {_YOU} do(?: now)?$"),
-    ("why", rf"^why(?: (?:are|do) {_YOU} (?:doing|do) (?:this|that|it))?(?: now)?$"),
-    ("why", rf"^why (?:are|r) {_YOU} .+$"),
-    ("how_subgoal", rf"^how (?:do|will|can|are) {_YOU} (?:going to )?(?:achieve|accomplish|reach|"
-                    rf"do) (?:your |the |this )?(?:sub ?goal|sub-goal|it)$"),
-    ("how_goal", rf"^how (?:do|will|can|are) {_YOU} (?:going to )?(?:achieve|accomplish|reach|"
-                 rf"do) (?:your |the )?(?:overall |main |final )?goal$"),
-    ("subgoal", r"^what(?: is|'s|s) (?:your|the)(?: current)? (?:sub ?goal|sub-goal)$"),
-    ("goal", r"^what(?: is|'s|s) (?:your|the)(?: overall| main| final)? goal$"),
-    ("wrong", r"^what went wrong$"),
-    ("wrong", r"^(?:was|is) (?:there )?(?:anything|something) wrong$"),
-    ("wrong", r"^how (?:was|is|were) (?:the )?failures? handled$"),
-    ("wrong", r"^(?:did )?(?:anything|something) (?:go )?wrong$"),
-    ("wrong", r"^what (?:failed|is wrong|was wrong)$"),
-]]
+_PATTERNS: list[tuple[str, re.Pattern]] = [
+    (intent, re.compile(p))
+    for intent, p in [
+        ("can", rf"^(?:can|could|will|would) {_YOU} (?:please )?(?P<what>.+)$"),
+        ("doing", rf"^what (?:are|r) {_YOU} (?:doing|up to)(?: now| right now)?$"),
+        ("doing", r"^what is (?:happening|going on)(?: now)?$"),
+        ("doing", rf"^what do {_YOU} do(?: now)?$"),
+        ("why", rf"^why(?: (?:are|do) {_YOU} (?:doing|do) (?:this|that|it))?(?: now)?$"),
+        ("why", rf"^why (?:are|r) {_YOU} .+$"),
+        (
+            "how_subgoal",
+            rf"^how (?:do|will|can|are) {_YOU} (?:going to )?(?:achieve|accomplish|reach|"
+            rf"do) (?:your |the |this )?(?:sub ?goal|sub-goal|it)$",
+        ),
+        (
+            "how_goal",
+            rf"^how (?:do|will|can|are) {_YOU} (?:going to )?(?:achieve|accomplish|reach|"
+            rf"do) (?:your |the )?(?:overall |main |final )?goal$",
+        ),
+        ("subgoal", r"^what(?: is|'s|s) (?:your|the)(?: current)? (?:sub ?goal|sub-goal)$"),
+        ("goal", r"^what(?: is|'s|s) (?:your|the)(?: overall| main| final)? goal$"),
+        ("wrong", r"^what went wrong$"),
+        ("wrong", r"^(?:was|is) (?:there )?(?:anything|something) wrong$"),
+        ("wrong", r"^how (?:was|is|were) (?:the )?failures? handled$"),
+        ("wrong", r"^(?:did )?(?:anything|something) (?:go )?wrong$"),
+        ("wrong", r"^what (?:failed|is wrong|was wrong)$"),
+    ]
+]
 
 
 class UnknownQuestion(ValueError):
@@ -78,8 +87,12 @@ class Answer:
 
     def to_json(self) -> dict:
         """JSON-ready form (``--json``)."""
-        data = {"question": self.question, "intent": self.intent, "answer": self.text,
-                "nodes": list(self.nodes)}
+        data = {
+            "question": self.question,
+            "intent": self.intent,
+            "answer": self.text,
+            "nodes": list(self.nodes),
+        }
         if self.insertion is not None:
             data["insertion"] = self.insertion.to_json()
         return data
@@ -126,8 +139,9 @@ def answer(tree: Tree, state: State, question: str) -> Answer:
     elif intent == "goal":
         text = goal(tree)
     elif intent == "how_subgoal":
-        text = _per_node(nodes, lambda n: how(subgoal_node(n), "subgoal"),
-                         "Sorry. I don't have a subgoal.")
+        text = _per_node(
+            nodes, lambda n: how(subgoal_node(n), "subgoal"), "Sorry. I don't have a subgoal."
+        )
     elif intent == "how_goal":
         text = how(tree.root, "goal")
     elif intent == "wrong":
@@ -141,8 +155,9 @@ def _can(tree: Tree, nodes: list[Node], question: str, wanted: str) -> Answer:
     wanted = wanted.strip()
     plan = plan_insertion(tree, nodes[0] if nodes else None, wanted)
     if plan is None:
-        return Answer(question, "can", f'Sorry. I cannot redo "{wanted}".',
-                      tuple(n.uid for n in nodes))
+        return Answer(
+            question, "can", f'Sorry. I cannot redo "{wanted}".', tuple(n.uid for n in nodes)
+        )
     text = f"Yes. I will {plan.requested.description} after {plan.after.description}."
     return Answer(question, "can", text, (plan.source.uid,), plan)
 

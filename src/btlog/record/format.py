@@ -79,7 +79,8 @@ def decode_events(message: dict) -> list[StatusChange | BlackboardWrite]:
     """The events of one ``/btlog/events`` message, in seq order."""
     events: list[StatusChange | BlackboardWrite] = [
         StatusChange(seq, t, tick, uid, _STATUS_BY_NAME[prev], _STATUS_BY_NAME[new])
-        for seq, t, tick, uid, prev, new in message.get("status", ())]
+        for seq, t, tick, uid, prev, new in message.get("status", ())
+    ]
     events.extend(BlackboardWrite(*row) for row in message.get("writes", ()))
     events.sort(key=lambda e: e.seq)
     return events
@@ -87,20 +88,36 @@ def decode_events(message: dict) -> list[StatusChange | BlackboardWrite]:
 
 def decode_mutation(message: dict) -> TreeMutation:
     """The mutation of one ``/btlog/mutations`` message."""
-    return TreeMutation(message["seq"], message["t_ns"], message["tick"], message["op"],
-                        message["parent_uid"], message.get("after_uid"), message["nodes"],
-                        message.get("question", ""))
+    return TreeMutation(
+        message["seq"],
+        message["t_ns"],
+        message["tick"],
+        message["op"],
+        message["parent_uid"],
+        message.get("after_uid"),
+        message["nodes"],
+        message.get("question", ""),
+    )
 
 
 def encode_mutation(mutation: TreeMutation) -> dict:
     """The ``/btlog/mutations`` message of a mutation."""
-    return {"seq": mutation.seq, "t_ns": mutation.t_ns, "tick": mutation.tick,
-            "op": mutation.op, "parent_uid": mutation.parent_uid,
-            "after_uid": mutation.after_uid, "inserted_root_uid": mutation.inserted_root_uid,
-            "nodes": mutation.nodes, "question": mutation.question}
+    return {
+        "seq": mutation.seq,
+        "t_ns": mutation.t_ns,
+        "tick": mutation.tick,
+        "op": mutation.op,
+        "parent_uid": mutation.parent_uid,
+        "after_uid": mutation.after_uid,
+        "inserted_root_uid": mutation.inserted_root_uid,
+        "nodes": mutation.nodes,
+        "question": mutation.question,
+    }
 
 
 def decode_ticks(message: dict) -> list[TickRecord]:
     """The tick records of one ``/btlog/ticks`` message."""
-    return [TickRecord(tick, start, end, _STATUS_BY_NAME[status])
-            for tick, start, end, status in message.get("ticks", ())]
+    return [
+        TickRecord(tick, start, end, _STATUS_BY_NAME[status])
+        for tick, start, end, status in message.get("ticks", ())
+    ]

@@ -124,7 +124,7 @@ def _indexed_reader(file: IO[bytes], size: int) -> SeekingReader | None:
         return None
     file.seek(size - len(MAGIC) - _FOOTER_SIZE)
     tail = file.read(_FOOTER_SIZE + len(MAGIC))
-    if tail[0] != Opcode.FOOTER or tail[-len(MAGIC):] != MAGIC:
+    if tail[0] != Opcode.FOOTER or tail[-len(MAGIC) :] != MAGIC:
         return None
     try:
         file.seek(0)
@@ -161,8 +161,9 @@ def raw_records(file: IO[bytes], size: int, scan: Scan) -> Iterator[Any]:
             scan.warnings.append(f"{scan.path}: unexpected end of the file")
     except DAMAGE_ERRORS as error:
         scan.truncated = True
-        scan.warnings.append(f"{scan.path}: damaged record, reading stopped there: "
-                             f"{type(error).__name__}: {error}")
+        scan.warnings.append(
+            f"{scan.path}: damaged record, reading stopped there: {type(error).__name__}: {error}"
+        )
 
 
 def _streamed_records(file: IO[bytes], size: int, scan: Scan) -> Iterator[Any]:
@@ -191,8 +192,10 @@ def _records(path: str | os.PathLike, scan: Scan) -> Iterator[Any]:
             yield from _indexed_records(reader)
         except DAMAGE_ERRORS as error:
             scan.truncated = True
-            scan.warnings.append(f"{scan.path}: damaged record, reading stopped there: "
-                                 f"{type(error).__name__}: {error}")
+            scan.warnings.append(
+                f"{scan.path}: damaged record, reading stopped there: "
+                f"{type(error).__name__}: {error}"
+            )
 
 
 # -- public reading API ------------------------------------------------------------------
@@ -249,8 +252,9 @@ def decode_metadata(path: str, record: dict[str, str]) -> dict[str, Any]:
     version = metadata.get("schema_version")
     if version != btlog.SCHEMA_VERSION:
         found = "no schema version" if version is None else f"schema version {version!r}"
-        raise RecordingError(f"{path}: {found}; this btlog reads schema version "
-                             f"{btlog.SCHEMA_VERSION!r}")
+        raise RecordingError(
+            f"{path}: {found}; this btlog reads schema version {btlog.SCHEMA_VERSION!r}"
+        )
     return metadata
 
 
@@ -261,8 +265,7 @@ def read_metadata(path: str | os.PathLike) -> dict[str, Any]:
     with file:
         record = _find_metadata(file, size)
     if record is None:
-        raise RecordingError(f"{name}: not a btlog recording (no {fmt.METADATA_NAME} "
-                             "metadata)")
+        raise RecordingError(f"{name}: not a btlog recording (no {fmt.METADATA_NAME} metadata)")
     return decode_metadata(name, record.metadata)
 
 
@@ -359,12 +362,19 @@ def open_recording(path: str | os.PathLike) -> Recording:
     try:
         for record in _records(name, scan):
             contents.add(record)
-    except (orjson.JSONDecodeError, KeyError, TypeError, ValueError, AttributeError,
-            IndexError) as error:
+    except (
+        orjson.JSONDecodeError,
+        KeyError,
+        TypeError,
+        ValueError,
+        AttributeError,
+        IndexError,
+    ) as error:
         if isinstance(error, RecordingError):
             raise
-        raise RecordingError(f"{name}: a message does not follow the btlog format: "
-                             f"{type(error).__name__}: {error}") from None
+        raise RecordingError(
+            f"{name}: a message does not follow the btlog format: {type(error).__name__}: {error}"
+        ) from None
     return _assemble(name, contents, scan)
 
 
@@ -384,17 +394,26 @@ def _assemble(name: str, contents: _Contents, scan: Scan) -> Recording:
     if scan.truncated:
         last = f"up to seq {events[-1].seq}" if events else "(none)"
         warnings.insert(0, f"{name}: truncated recording; read {len(events)} events {last}")
-    return Recording(Path(name), metadata, _tree(name, contents.tree), events,
-                     contents.ticks, contents.answers, contents.attachments,
-                     scan.truncated, warnings)
+    return Recording(
+        Path(name),
+        metadata,
+        _tree(name, contents.tree),
+        events,
+        contents.ticks,
+        contents.answers,
+        contents.attachments,
+        scan.truncated,
+        warnings,
+    )
 
 
 def _tree(name: str, message: dict) -> Tree:
     try:
         return Tree.from_description(message)
     except (KeyError, TypeError, StopIteration) as error:
-        raise RecordingError(f"{name}: the {fmt.TREE_TOPIC} message is not a tree: "
-                             f"{type(error).__name__}: {error}") from None
+        raise RecordingError(
+            f"{name}: the {fmt.TREE_TOPIC} message is not a tree: {type(error).__name__}: {error}"
+        ) from None
 
 
 def _gap_free(events: list) -> bool:

@@ -81,9 +81,11 @@ def run_metadata(metadata: Mapping[str, Any]) -> dict[str, str]:
     """The ``btlog.run`` record: every value a string (JSON text for ``JSON_METADATA``
     keys given as objects), with the schema version, btlog's version, a run id and the
     start time filled in."""
-    record = {"run_id": uuid.uuid4().hex,
-              "started_at": datetime.now(UTC).isoformat(timespec="microseconds"),
-              "btlog_version": btlog.__version__}
+    record = {
+        "run_id": uuid.uuid4().hex,
+        "started_at": datetime.now(UTC).isoformat(timespec="microseconds"),
+        "btlog_version": btlog.__version__,
+    }
     for key, value in metadata.items():
         record[str(key)] = _metadata_text(str(key), value)
     record["schema_version"] = btlog.SCHEMA_VERSION
@@ -115,11 +117,18 @@ class Recorder(Subscriber):
     off by default; blackboard writes are always bounded by ``MAX_BUFFERED_EVENTS``.
     """
 
-    def __init__(self, path: str | os.PathLike, tree: Tree, metadata: Mapping[str, Any],
-                 attachments: Iterable[tuple[str, bytes]] = (), flush_interval: float = 1.0,
-                 compression: CompressionType = DEFAULT_COMPRESSION,
-                 chunk_size: int = CHUNK_SIZE, max_tick_events: int | None = None,
-                 group_events: int = GROUP_EVENTS) -> None:
+    def __init__(
+        self,
+        path: str | os.PathLike,
+        tree: Tree,
+        metadata: Mapping[str, Any],
+        attachments: Iterable[tuple[str, bytes]] = (),
+        flush_interval: float = 1.0,
+        compression: CompressionType = DEFAULT_COMPRESSION,
+        chunk_size: int = CHUNK_SIZE,
+        max_tick_events: int | None = None,
+        group_events: int = GROUP_EVENTS,
+    ) -> None:
         self.path = os.fspath(path)
         self.group_events = group_events
         self.flush_interval = flush_interval
@@ -148,8 +157,9 @@ class Recorder(Subscriber):
         writer.start(profile="", library=f"btlog/{btlog.__version__}")
         channels = {}
         for topic, (schema_name, schema_file) in fmt.TOPICS.items():
-            schema_id = writer.register_schema(schema_name, SchemaEncoding.JSONSchema,
-                                               schema_text(schema_file))
+            schema_id = writer.register_schema(
+                schema_name, SchemaEncoding.JSONSchema, schema_text(schema_file)
+            )
             channels[topic] = writer.register_channel(topic, MessageEncoding.JSON, schema_id)
         writer.add_metadata(fmt.METADATA_NAME, self.metadata)
         now = time.time_ns()
@@ -160,8 +170,9 @@ class Recorder(Subscriber):
         return channels
 
     # -- the hot path -----------------------------------------------------------------
-    def on_status(self, seq: int, t_ns: int, tick: int, uid: int, prev: Status,
-                  status: Status) -> None:
+    def on_status(
+        self, seq: int, t_ns: int, tick: int, uid: int, prev: Status, status: Status
+    ) -> None:
         """Buffer a status change (replaced per instance by ``_status_appender``)."""
         rows = self._status_rows
         rows.append((seq, t_ns, tick, uid, STATUS_NAMES[prev], STATUS_NAMES[status]))
@@ -175,12 +186,14 @@ class Recorder(Subscriber):
         append, names, limit = rows.append, STATUS_NAMES, self.max_tick_events
         overflow = self._overflow
 
-        def on_status(seq: int, t_ns: int, tick: int, uid: int, prev: Status,
-                      status: Status) -> None:
+        def on_status(
+            seq: int, t_ns: int, tick: int, uid: int, prev: Status, status: Status
+        ) -> None:
             append((seq, t_ns, tick, uid, names[prev], names[status]))
 
-        def on_status_bounded(seq: int, t_ns: int, tick: int, uid: int, prev: Status,
-                              status: Status) -> None:
+        def on_status_bounded(
+            seq: int, t_ns: int, tick: int, uid: int, prev: Status, status: Status
+        ) -> None:
             append((seq, t_ns, tick, uid, names[prev], names[status]))
             if len(rows) > limit:
                 overflow()
@@ -189,8 +202,17 @@ class Recorder(Subscriber):
         appender.__doc__ = Recorder.on_status.__doc__
         return appender
 
-    def on_write(self, seq: int, t_ns: int, tick: int, scope: str, key: str, value: Any,
-                 type_name: str, writer_uid: int | None) -> None:
+    def on_write(
+        self,
+        seq: int,
+        t_ns: int,
+        tick: int,
+        scope: str,
+        key: str,
+        value: Any,
+        type_name: str,
+        writer_uid: int | None,
+    ) -> None:
         """Buffer a blackboard write (a value orjson cannot encode becomes its repr)."""
         rows = self._write_rows
         rows.append((seq, t_ns, tick, scope, key, json_value(value), type_name, writer_uid))
@@ -230,15 +252,24 @@ class Recorder(Subscriber):
         self.event_count += 1
         self.last_seq = mutation.seq
 
-    def on_answer(self, seq: int, t_ns: int, tick: int, question: str, intent: str,
-                  answer: str) -> None:
+    def on_answer(
+        self, seq: int, t_ns: int, tick: int, question: str, intent: str, answer: str
+    ) -> None:
         """Record a question asked live and its answer (after the events it is about)."""
         if self._closed:
             return
         self._write_events()
-        self._add(fmt.ANSWERS_TOPIC, {"seq": seq, "t_ns": t_ns, "tick": tick,
-                                      "question": question, "intent": intent,
-                                      "answer": answer})
+        self._add(
+            fmt.ANSWERS_TOPIC,
+            {
+                "seq": seq,
+                "t_ns": t_ns,
+                "tick": tick,
+                "question": question,
+                "intent": intent,
+                "answer": answer,
+            },
+        )
 
     def flush(self) -> None:
         """Write everything buffered and flush it to the file (closes the MCAP chunk)."""
@@ -286,8 +317,9 @@ class Recorder(Subscriber):
         last = status[-1] if status else writes[-1]
         if status and writes and writes[-1][0] > last[0]:
             last = writes[-1]
-        data = orjson.dumps({"tick": last[2] if tick is None else tick,
-                             "status": status, "writes": writes})
+        data = orjson.dumps(
+            {"tick": last[2] if tick is None else tick, "status": status, "writes": writes}
+        )
         now = time.time_ns()
         self._writer.add_message(self._events_channel, now, data, now)
         self.event_count += len(status) + len(writes)

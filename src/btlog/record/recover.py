@@ -42,8 +42,10 @@ class RecoveryReport:
         """One line for a person."""
         state = "truncated" if self.truncated else "complete"
         last = "no events" if self.last_seq is None else f"last seq {self.last_seq}"
-        return (f"{self.source} ({state}) -> {self.target}: {self.events} events, "
-                f"{self.ticks} ticks, {self.messages} messages saved; {last}")
+        return (
+            f"{self.source} ({state}) -> {self.target}: {self.events} events, "
+            f"{self.ticks} ticks, {self.messages} messages saved; {last}"
+        )
 
 
 class _Copier:
@@ -61,31 +63,39 @@ class _Copier:
             self._message(record)
         elif isinstance(record, Schema) and record.id not in self.schemas:
             self.schemas[record.id] = self.writer.register_schema(
-                record.name, record.encoding, record.data)
+                record.name, record.encoding, record.data
+            )
         elif isinstance(record, Channel) and record.id not in self.channels:
             new_id = self.writer.register_channel(
-                record.topic, record.message_encoding, self.schemas.get(record.schema_id, 0),
-                record.metadata)
+                record.topic,
+                record.message_encoding,
+                self.schemas.get(record.schema_id, 0),
+                record.metadata,
+            )
             self.channels[record.id] = (new_id, record.topic)
         elif isinstance(record, Metadata):
             self.writer.add_metadata(record.name, record.metadata)
         elif isinstance(record, Attachment):
-            self.writer.add_attachment(record.create_time, record.log_time, record.name,
-                                       record.media_type, record.data)
+            self.writer.add_attachment(
+                record.create_time, record.log_time, record.name, record.media_type, record.data
+            )
 
     def _message(self, message: Message) -> None:
         channel = self.channels.get(message.channel_id)
         if channel is None:
             return
         channel_id, topic = channel
-        self.writer.add_message(channel_id, message.log_time, message.data,
-                                message.publish_time, message.sequence)
+        self.writer.add_message(
+            channel_id, message.log_time, message.data, message.publish_time, message.sequence
+        )
         self.report.messages += 1
         try:
             self._count(topic, message.data)
         except (orjson.JSONDecodeError, AttributeError, TypeError, IndexError):
-            self.report.warnings.append(f"{self.report.source}: a {topic} message is not "
-                                        "in the btlog format (copied, not counted)")
+            self.report.warnings.append(
+                f"{self.report.source}: a {topic} message is not "
+                "in the btlog format (copied, not counted)"
+            )
 
     def _count(self, topic: str, data: bytes) -> None:
         if topic == fmt.EVENTS_TOPIC:
@@ -126,8 +136,7 @@ def recover(broken: str | os.PathLike, fixed: str | os.PathLike) -> RecoveryRepo
     return report
 
 
-def _rewrite(records: Iterator[object], target: Path, library: str,
-             report: RecoveryReport) -> None:
+def _rewrite(records: Iterator[object], target: Path, library: str, report: RecoveryReport) -> None:
     """Write ``records`` into ``target`` through a temporary file in the same folder."""
     temporary = target.with_name(f".{target.name}.{os.getpid()}.recovering")
     try:

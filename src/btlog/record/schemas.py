@@ -28,5 +28,6 @@ def schema_text(name: str) -> bytes:
     fallback = _REPOSITORY_SCHEMAS / name
     if fallback.is_file():
         return fallback.read_bytes()
-    raise FileNotFoundError(f"schema {name!r} is neither in the btlog package nor in "
-                            f"{_REPOSITORY_SCHEMAS}")
+    raise FileNotFoundError(
+        f"schema {name!r} is neither in the btlog package nor in {_REPOSITORY_SCHEMAS}"
+    )

@@ -43,8 +43,9 @@ def safe(text: Any) -> str:
 def make_console(plain: bool = False, stderr: bool = False) -> Console:
     """A console for output; ``plain`` disables colour and styling."""
     if plain:
-        return Console(color_system=None, no_color=True, highlight=False, stderr=stderr,
-                       soft_wrap=True)
+        return Console(
+            color_system=None, no_color=True, highlight=False, stderr=stderr, soft_wrap=True
+        )
     return Console(highlight=False, stderr=stderr, soft_wrap=True)
 
 

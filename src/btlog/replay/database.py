@@ -121,9 +121,12 @@ class TimelineEntry(NamedTuple):
 
 
 # -- opening ------------------------------------------------------------------------------
-def open_runs(*paths: str | os.PathLike, cache: bool = True,
-              snapshot_every: int = ingestion.DEFAULT_SNAPSHOT_EVERY,
-              cache_dir: str | os.PathLike | None = None) -> RunDatabase:
+def open_runs(
+    *paths: str | os.PathLike,
+    cache: bool = True,
+    snapshot_every: int = ingestion.DEFAULT_SNAPSHOT_EVERY,
+    cache_dir: str | os.PathLike | None = None,
+) -> RunDatabase:
     """Open one or many recordings in one database (see the module docstring).
 
     ``cache_dir`` puts the caches there instead of beside the recordings.
@@ -141,8 +144,9 @@ def open_runs(*paths: str | os.PathLike, cache: bool = True,
     return database
 
 
-def cache_location(recording: str | os.PathLike,
-                   cache_dir: str | os.PathLike | None = None) -> Path:
+def cache_location(
+    recording: str | os.PathLike, cache_dir: str | os.PathLike | None = None
+) -> Path:
     """Where the cache of ``recording`` lives: ``cache_dir`` if given, else beside the
     recording when its folder is writable, else the user's cache folder."""
     path = Path(os.path.abspath(os.fspath(recording)))
@@ -166,8 +170,14 @@ def _cache_name(path: Path) -> str:
 
 def _cache_key(path: str, snapshot_every: int) -> tuple:
     stat = os.stat(path)
-    return (path, stat.st_size, stat.st_mtime_ns, btlog.SCHEMA_VERSION,
-            ingestion.INGEST_VERSION, snapshot_every)
+    return (
+        path,
+        stat.st_size,
+        stat.st_mtime_ns,
+        btlog.SCHEMA_VERSION,
+        ingestion.INGEST_VERSION,
+        snapshot_every,
+    )
 
 
 def _build_cache(path: str, cache: Path, snapshot_every: int) -> ingestion.IngestReport:
@@ -178,8 +188,7 @@ def _build_cache(path: str, cache: Path, snapshot_every: int) -> ingestion.Inges
     them in C++), so the two overlap; the snapshots follow them into the file.
     """
     cache.parent.mkdir(parents=True, exist_ok=True)
-    temporary = cache.with_name(f".{cache.name}.{os.getpid()}-{uuid.uuid4().hex[:8]}"
-                                f"{CACHE_SUFFIX}")
+    temporary = cache.with_name(f".{cache.name}.{os.getpid()}-{uuid.uuid4().hex[:8]}{CACHE_SUFFIX}")
     con = duckdb.connect()
     try:
         con.execute("ATTACH $path AS cache_file", {"path": str(temporary)})
@@ -222,8 +231,12 @@ class RunDatabase:
         self._runs: list[Run] = []
 
     # -- adding runs ---------------------------------------------------------------------
-    def add(self, path: str | os.PathLike, cache: bool = True,
-            cache_dir: str | os.PathLike | None = None) -> Run:
+    def add(
+        self,
+        path: str | os.PathLike,
+        cache: bool = True,
+        cache_dir: str | os.PathLike | None = None,
+    ) -> Run:
         """Open one more recording (from its cache when valid) and return its run."""
         name = os.path.abspath(os.fspath(path))
         catalog = f"run{len(self._runs)}"
@@ -237,8 +250,7 @@ class RunDatabase:
         except OSError as error:
             raise ReplayError(f"{name}: cannot read: {error.strerror or error}") from None
         except duckdb.Error as error:
-            raise ReplayError(f"{name}: cannot build its read model: "
-                              f"{_one_line(error)}") from None
+            raise ReplayError(f"{name}: cannot build its read model: {_one_line(error)}") from None
         run = Run(self, catalog, self._unique_id(catalog))
         self._runs.append(run)
         self._create_views()
@@ -276,7 +288,8 @@ class RunDatabase:
         try:
             rows = self.con.execute(
                 f"SELECT file, size, mtime_ns, schema_version, ingest_version, "
-                f"snapshot_every FROM {catalog}._ingest").fetchall()
+                f"snapshot_every FROM {catalog}._ingest"
+            ).fetchall()
         except duckdb.Error:
             rows = []
         if rows == [key]:
@@ -289,8 +302,9 @@ class RunDatabase:
         self.con.execute(f"USE {catalog}")
         try:
             ingestion.create_schema(self.con)
-            self.ingested.append(ingestion.ingest(self.con, path,
-                                                  snapshot_every=self.snapshot_every))
+            self.ingested.append(
+                ingestion.ingest(self.con, path, snapshot_every=self.snapshot_every)
+            )
         except BaseException:
             self.con.execute("USE memory")
             self.con.execute(f"DETACH {catalog}")
@@ -312,10 +326,13 @@ class RunDatabase:
     def _create_views(self) -> None:
         """The public tables as views over every run's catalog (run ids made unique)."""
         for table in ingestion.PUBLIC_TABLES:
-            parts = [f"SELECT * REPLACE ('{run.run_id}' AS run_id) FROM {run.catalog}.{table}"
-                     for run in self._runs]
-            self.con.execute(f"CREATE OR REPLACE VIEW memory.main.{table} AS "
-                             + " UNION ALL ".join(parts))
+            parts = [
+                f"SELECT * REPLACE ('{run.run_id}' AS run_id) FROM {run.catalog}.{table}"
+                for run in self._runs
+            ]
+            self.con.execute(
+                f"CREATE OR REPLACE VIEW memory.main.{table} AS " + " UNION ALL ".join(parts)
+            )
 
     # -- using it ------------------------------------------------------------------------
     @property
@@ -339,13 +356,15 @@ class RunDatabase:
         known = ", ".join(run.run_id for run in self._runs)
         raise ReplayError(f"no run {str(key)!r} in this database (runs: {known})")
 
-    def sql(self, query: str, params: Sequence | dict | None = None
-            ) -> tuple[list[str], list[tuple]]:
+    def sql(
+        self, query: str, params: Sequence | dict | None = None
+    ) -> tuple[list[str], list[tuple]]:
         """Run ``query`` (with ``params`` bound to its ``?`` or ``$name`` placeholders);
         returns (column names, rows)."""
         try:
-            cursor = self.con.execute(query, params) if params is not None else \
-                self.con.execute(query)
+            cursor = (
+                self.con.execute(query, params) if params is not None else self.con.execute(query)
+            )
             columns = [d[0] for d in cursor.description or ()]
             rows = cursor.fetchall() if cursor.description else []
         except duckdb.Error as error:
@@ -383,8 +402,10 @@ class Run:
         self.run_id = run_id
         self._prefix = f"{catalog}."
         row = first_row(
-            self.con, f"SELECT run_id, events, last_tick, truncated, warnings, snapshot_every, "
-            f"tree FROM {catalog}._ingest")
+            self.con,
+            f"SELECT run_id, events, last_tick, truncated, warnings, snapshot_every, "
+            f"tree FROM {catalog}._ingest",
+        )
         self._stored_id, events, last_tick, truncated, warnings, every, tree = row
         self.snapshot_every = every
         self.tree = Tree.from_description(orjson.loads(tree))
@@ -392,23 +413,49 @@ class Run:
         self.info = self._info(events, last_tick, truncated, orjson.loads(warnings))
         rows = self.con.execute(
             f"SELECT first_t_ns, first_tick FROM {catalog}._snapshots WHERE run_id = $run_id "
-            f"ORDER BY seq", {"run_id": self._stored_id}).fetchall()
+            f"ORDER BY seq",
+            {"run_id": self._stored_id},
+        ).fetchall()
         #: time and tick of the first event of each block (past the end for an empty one)
-        self._first_keys = {"t_ns": [_PAST if r[0] is None else r[0] for r in rows],
-                            "tick": [_PAST if r[1] is None else r[1] for r in rows]}
+        self._first_keys = {
+            "t_ns": [_PAST if r[0] is None else r[0] for r in rows],
+            "tick": [_PAST if r[1] is None else r[1] for r in rows],
+        }
         self._blocks: OrderedDict[int, tuple[dict, ingestion.EventBatch]] = OrderedDict()
         started_ns, zone = parse_started_at(self.info.metadata.get("started_at"))
-        self.extent = RunExtent(events, self.info.duration_ns, last_tick, started_ns,
-                                self._count_at, self._count_after_tick, self._time_of, zone)
+        self.extent = RunExtent(
+            events,
+            self.info.duration_ns,
+            last_tick,
+            started_ns,
+            self._count_at,
+            self._count_after_tick,
+            self._time_of,
+            zone,
+        )
 
     def _info(self, events: int, last_tick: int, truncated: bool, warnings: list) -> RunInfo:
         row = first_row(
-            self.con, f"SELECT file, tree_name, started_at, duration_ns, final_status, domain, "
-            f"seed, metadata FROM {self.catalog}.runs")
+            self.con,
+            f"SELECT file, tree_name, started_at, duration_ns, final_status, domain, "
+            f"seed, metadata FROM {self.catalog}.runs",
+        )
         file, tree_name, started_at, duration, final, domain, seed, metadata = row
-        return RunInfo(self.run_id, file, tree_name, started_at, duration, final, domain,
-                       seed, events, last_tick, truncated, tuple(warnings),
-                       orjson.loads(metadata))
+        return RunInfo(
+            self.run_id,
+            file,
+            tree_name,
+            started_at,
+            duration,
+            final,
+            domain,
+            seed,
+            events,
+            last_tick,
+            truncated,
+            tuple(warnings),
+            orjson.loads(metadata),
+        )
 
     def __repr__(self) -> str:
         return f"<Run {self.run_id} {self.info.file} {self.info.events} events>"
@@ -423,8 +470,11 @@ class Run:
             return cached
         seq = index * self.snapshot_every
         state, events = first_row(
-            self.con, f"SELECT state, events FROM {self._prefix}_snapshots "
-            f"WHERE run_id = $run_id AND seq = $seq", {"run_id": self._stored_id, "seq": seq})
+            self.con,
+            f"SELECT state, events FROM {self._prefix}_snapshots "
+            f"WHERE run_id = $run_id AND seq = $seq",
+            {"run_id": self._stored_id, "seq": seq},
+        )
         mutations = [m for m in self.mutations if seq <= m.seq < seq + self.snapshot_every]
         block = (orjson.loads(state), ingestion.EventBatch.from_block(events, mutations))
         self._blocks[index] = block
@@ -475,8 +525,9 @@ class Run:
         """(tree, state) after the first ``count`` events: the snapshot at or before
         ``count`` plus the events between, folded with ``StateProjection``."""
         if not 0 <= count <= self.extent.events:
-            raise ReplayError(f"run {self.run_id} has {self.extent.events} events; "
-                              f"cannot apply {count}")
+            raise ReplayError(
+                f"run {self.run_id} has {self.extent.events} events; cannot apply {count}"
+            )
         index = count // self.snapshot_every
         start = index * self.snapshot_every
         snapshot, batch = self._block(index)
@@ -485,11 +536,14 @@ class Run:
         batch.fold(projection, start, count)
         return projection.tree, projection.state
 
-
     # -- timeline ------------------------------------------------------------------------
-    def timeline(self, node: int | str | None = None, status: str | Status | None = None,
-                 start: str | Moment | None = None, end: str | Moment | None = None
-                 ) -> list[TimelineEntry]:
+    def timeline(
+        self,
+        node: int | str | None = None,
+        status: str | Status | None = None,
+        start: str | Moment | None = None,
+        end: str | Moment | None = None,
+    ) -> list[TimelineEntry]:
         """The events from ``start`` (at or after it) to ``end`` (up to it), in seq order.
 
         ``node`` (a uid, or a name, type or path as in outcomes files) keeps that node's
@@ -500,12 +554,27 @@ class Run:
         hi = self.extent.events if end is None else self.resolve(end).count
         uids = None if node is None else self._node_uids(node)
         wanted = None if status is None else _status_name(status)
-        rows = self.con.execute(self._timeline_query(uids is not None, wanted is not None),
-                                self._timeline_params(lo, hi, uids, wanted)).fetchall()
+        rows = self.con.execute(
+            self._timeline_query(uids is not None, wanted is not None),
+            self._timeline_params(lo, hi, uids, wanted),
+        ).fetchall()
         names = {n.uid: n.description for n in self._final_tree()}
-        return [TimelineEntry(seq, t, tick, kind, uid, names.get(uid), prev, new, scope, key,
-                              None if value is None else orjson.loads(value))
-                for seq, t, tick, kind, uid, prev, new, scope, key, value in rows]
+        return [
+            TimelineEntry(
+                seq,
+                t,
+                tick,
+                kind,
+                uid,
+                names.get(uid),
+                prev,
+                new,
+                scope,
+                key,
+                None if value is None else orjson.loads(value),
+            )
+            for seq, t, tick, kind, uid, prev, new, scope, key, value in rows
+        ]
 
     def _first_at(self, moment: Moment) -> int:
         """The first event at or after a start moment."""
@@ -524,9 +593,11 @@ class Run:
         node = " AND list_contains($uids, {c})" if by_node else ""
         range_ = "run_id = $run_id AND seq >= $lo AND seq < $hi"
         status = " AND status = $status" if by_status else ""
-        parts = [f"""SELECT seq, t_ns, tick, 'status' AS kind, uid, prev_status::VARCHAR,
+        parts = [
+            f"""SELECT seq, t_ns, tick, 'status' AS kind, uid, prev_status::VARCHAR,
                 status::VARCHAR, NULL, NULL, NULL FROM {p}transitions
-                WHERE {range_}{node.format(c="uid")}{status}"""]
+                WHERE {range_}{node.format(c="uid")}{status}"""
+        ]
         if not by_status:
             parts.append(f"""SELECT seq, t_ns, tick, 'write', writer_uid, NULL, NULL, scope,
                 key, value::VARCHAR FROM {p}blackboard WHERE {range_}
@@ -537,8 +608,9 @@ class Run:
                 {node.format(c="(message -> 'nodes' -> 0 ->> 'uid')::INTEGER")}""")
         return " UNION ALL ".join(parts) + " ORDER BY seq"
 
-    def _timeline_params(self, lo: int, hi: int, uids: list[int] | None,
-                         status: str | None) -> dict:
+    def _timeline_params(
+        self, lo: int, hi: int, uids: list[int] | None, status: str | None
+    ) -> dict:
         params: dict[str, Any] = {"run_id": self._stored_id, "lo": lo, "hi": hi}
         if uids is not None:
             params["uids"] = uids
@@ -559,8 +631,10 @@ class Run:
             raise ReplayError(f"run {self.run_id} has no node with uid {node}")
         found = tree.lookup(str(node))
         if not found:
-            raise ReplayError(f"no node of run {self.run_id} matches {node!r} "
-                              "(a name, a type of nameless nodes, or a path)")
+            raise ReplayError(
+                f"no node of run {self.run_id} matches {node!r} "
+                "(a name, a type of nameless nodes, or a path)"
+            )
         return [n.uid for n in found]
 
     # -- answers asked live ---------------------------------------------------------------
@@ -568,7 +642,9 @@ class Run:
         """The questions asked live during the run and their recorded answers."""
         rows = self.con.execute(
             f"SELECT seq, t_ns, tick, question, intent, answer FROM {self._prefix}_answers "
-            f"WHERE run_id = $run_id ORDER BY seq", {"run_id": self._stored_id}).fetchall()
+            f"WHERE run_id = $run_id ORDER BY seq",
+            {"run_id": self._stored_id},
+        ).fetchall()
         keys = ("seq", "t_ns", "tick", "question", "intent", "answer")
         return [dict(zip(keys, row, strict=True)) for row in rows]
 
@@ -578,10 +654,20 @@ def _status_name(status: str | Status) -> str:
         return status.name
     name = str(status).strip().upper()
     if name not in ingestion.STATUS_VALUES:
-        raise ReplayError(f"unknown status {status!r} (expected one of "
-                          f"{', '.join(ingestion.STATUS_VALUES)})")
+        raise ReplayError(
+            f"unknown status {status!r} (expected one of {', '.join(ingestion.STATUS_VALUES)})"
+        )
     return name
 
 
-__all__ = ["MomentError", "ReplayError", "Run", "RunDatabase", "RunInfo", "TimelineEntry",
-           "cache_location", "open_runs", "user_cache_dir"]
+__all__ = [
+    "MomentError",
+    "ReplayError",
+    "Run",
+    "RunDatabase",
+    "RunInfo",
+    "TimelineEntry",
+    "cache_location",
+    "open_runs",
+    "user_cache_dir",
+]

@@ -119,8 +119,11 @@ INTERNAL_TABLES = ("_mutations", "_answers", "_snapshots", "_ingest")
 def first_row(con, query: str, params: dict | list | None = None) -> tuple | None:
     """The first row of ``query`` (None if it has none). The result is fetched to its
     end: DuckDB refuses new work on a connection with an unfinished result."""
-    rows = con.execute(query, params).fetchall() if params is not None else \
-        con.execute(query).fetchall()
+    rows = (
+        con.execute(query, params).fetchall()
+        if params is not None
+        else con.execute(query).fetchall()
+    )
     return rows[0] if rows else None
 
 
@@ -250,8 +253,10 @@ class _McapScan:
                 self._top_record(opcode, data, body, end)
             except (ValueError, struct.error, RuntimeError) as error:
                 self.out.truncated = True
-                self.out.warnings.append(f"{self.path}: damaged record, reading stopped there: "
-                                         f"{type(error).__name__}: {error}")
+                self.out.warnings.append(
+                    f"{self.path}: damaged record, reading stopped there: "
+                    f"{type(error).__name__}: {error}"
+                )
                 return
             if len(self.batch.status) + len(self.batch.ticks) >= BATCH_BYTES:
                 self.on_batch(self.batch)
@@ -263,7 +268,7 @@ class _McapScan:
         if opcode == _OP_CHUNK:
             self._records(self._decompress(data, body))
         elif opcode in (_OP_MESSAGE, _OP_CHANNEL):
-            self._records(data[body - _HEAD.size:end])
+            self._records(data[body - _HEAD.size : end])
         elif opcode == _OP_METADATA and self.out.metadata is None:
             self._metadata(data[body:end])
 
@@ -272,10 +277,10 @@ class _McapScan:
         _start, _end, size, _crc = _CHUNK_HEAD.unpack_from(data, body)
         position = body + _CHUNK_HEAD.size
         (name_length,) = _U32.unpack_from(data, position)
-        compression = data[position + 4:position + 4 + name_length]
+        compression = data[position + 4 : position + 4 + name_length]
         position += 4 + name_length
         (length,) = _U64.unpack_from(data, position)
-        raw = data[position + 8:position + 8 + length]
+        raw = data[position + 8 : position + 8 + length]
         if compression == b"zstd":
             return zstandard.ZstdDecompressor().decompress(raw, max_output_size=size)
         if compression == b"lz4":
@@ -309,7 +314,7 @@ class _McapScan:
                     status_rows += view[status:writes]
                     status_rows += b","
                 if end - 2 > writes + 12:
-                    write_rows.append(view[writes + 12:end - 2])
+                    write_rows.append(view[writes + 12 : end - 2])
             elif opcode == _OP_MESSAGE:
                 self._message(buffer, body, end)
             elif opcode == _OP_CHANNEL:
@@ -318,20 +323,20 @@ class _McapScan:
     def _channel(self, buffer: bytes, body: int) -> bytes | None:
         (channel,) = _U16.unpack_from(buffer, body)
         (length,) = _U32.unpack_from(buffer, body + 4)
-        topic = buffer[body + 8:body + 8 + length].decode()
+        topic = buffer[body + 8 : body + 8 + length].decode()
         self.topics[channel] = topic
         if topic == fmt.EVENTS_TOPIC:
-            self.events_channel = buffer[body:body + 2]
+            self.events_channel = buffer[body : body + 2]
         return self.events_channel
 
     def _message(self, buffer: bytes, body: int, end: int) -> None:
         topic = self.topics.get(_U16.unpack_from(buffer, body)[0])
-        payload = buffer[body + _MESSAGE_HEAD:end]
+        payload = buffer[body + _MESSAGE_HEAD : end]
         out = self.out
         if topic == fmt.TICKS_TOPIC:
             if payload.startswith(_TICKS_HEAD) and payload.endswith(_TAIL):
                 if len(payload) > len(_TICKS_HEAD) + 2:
-                    self.batch.ticks += memoryview(payload)[len(_TICKS_HEAD):-2]
+                    self.batch.ticks += memoryview(payload)[len(_TICKS_HEAD) : -2]
                     self.batch.ticks += b","
             else:
                 out.other_ticks.append(payload)
@@ -344,7 +349,7 @@ class _McapScan:
 
     def _metadata(self, body: bytes) -> None:
         (name_length,) = _U32.unpack_from(body, 0)
-        name = body[4:4 + name_length].decode()
+        name = body[4 : 4 + name_length].decode()
         if name != fmt.METADATA_NAME:
             return
         position = 4 + name_length + 4
@@ -359,7 +364,7 @@ class _McapScan:
 def _string(body: bytes, position: int) -> tuple[str, int]:
     (length,) = _U32.unpack_from(body, position)
     end = position + 4 + length
-    return body[position + 4:end].decode(), end
+    return body[position + 4 : end].decode(), end
 
 
 # -- 3. loading the rows ----------------------------------------------------------------------
@@ -415,8 +420,9 @@ class _Loader:
         if batch.status:
             self.rows.submit(_load_csv_rows, run_id, "transitions", batch.status, _STATUS_CSV)
         if batch.writes:
-            self.writes.submit(_load_write_rows, run_id, batch.writes,
-                               self.folder / f"writes-{self.batches}.jsonl")
+            self.writes.submit(
+                _load_write_rows, run_id, batch.writes, self.folder / f"writes-{self.batches}.jsonl"
+            )
         if batch.ticks:
             self.writes.submit(_load_csv_rows, run_id, "ticks", batch.ticks, _TICKS_CSV)
 
@@ -437,14 +443,23 @@ class _Loader:
 _STATUS_TYPE = pa.dictionary(pa.int32(), pa.string())
 #: (column names, Arrow types) of the CSV made from status rows and from tick rows; the
 #: last, empty column comes from the comma after every row.
-_STATUS_CSV = (("seq", "t_ns", "tick", "uid", "prev_status", "status"),
-               (pa.int64(), pa.int64(), pa.int64(), pa.int32(), _STATUS_TYPE, _STATUS_TYPE))
-_TICKS_CSV = (("tick", "start_ns", "end_ns", "root_status"),
-              (pa.int64(), pa.int64(), pa.int64(), _STATUS_TYPE))
+_STATUS_CSV = (
+    ("seq", "t_ns", "tick", "uid", "prev_status", "status"),
+    (pa.int64(), pa.int64(), pa.int64(), pa.int32(), _STATUS_TYPE, _STATUS_TYPE),
+)
+_TICKS_CSV = (
+    ("tick", "start_ns", "end_ns", "root_status"),
+    (pa.int64(), pa.int64(), pa.int64(), _STATUS_TYPE),
+)
 
 
-def _load_csv_rows(con, run_id: str, table: str, rows: bytearray,
-                   layout: tuple[tuple[str, ...], tuple[pa.DataType, ...]]) -> None:
+def _load_csv_rows(
+    con,
+    run_id: str,
+    table: str,
+    rows: bytearray,
+    layout: tuple[tuple[str, ...], tuple[pa.DataType, ...]],
+) -> None:
     """Rows ``[a,b,"X"],[c,d,"Y"],`` become the CSV lines ``a,b,X,`` (step 2), parsed
     by Arrow's multithreaded CSV reader and inserted; rows it refuses are decoded as JSON
     instead."""
@@ -458,8 +473,11 @@ def _load_csv_rows(con, run_id: str, table: str, rows: bytearray,
             read_options=pa_csv.ReadOptions(column_names=[*names, "_"], block_size=8 << 20),
             parse_options=pa_csv.ParseOptions(quote_char=False, double_quote=False),
             convert_options=pa_csv.ConvertOptions(
-                include_columns=list(names), column_types=dict(zip(names, types, strict=True)),
-                strings_can_be_null=False))
+                include_columns=list(names),
+                column_types=dict(zip(names, types, strict=True)),
+                strings_can_be_null=False,
+            ),
+        )
     except (pa.ArrowInvalid, pa.ArrowNotImplementedError):
         parsed = None
     del body
@@ -486,8 +504,11 @@ def _canonical_statuses(table: pa.Table) -> pa.Table | None:
                 return None
             indices = pa_compute.take(codes.cast(pa.int8()), chunk.indices)
             chunks.append(pa.DictionaryArray.from_arrays(indices, _STATUS_DICTIONARY))
-        table = table.set_column(position, table.field(position).name,
-                                 pa.chunked_array(chunks, pa.dictionary(pa.int8(), pa.string())))
+        table = table.set_column(
+            position,
+            table.field(position).name,
+            pa.chunked_array(chunks, pa.dictionary(pa.int8(), pa.string())),
+        )
     return table
 
 
@@ -499,12 +520,14 @@ def _load_write_rows(con, run_id: str, lines: list[bytes | memoryview], path: Pa
     with open(path, "wb") as file:
         file.write(b'{"w":[' + b']}\n{"w":['.join(lines) + b"]}\n")
     try:
-        con.execute("""INSERT INTO blackboard
+        con.execute(
+            """INSERT INTO blackboard
             SELECT $run_id, r[1]::BIGINT, r[2]::BIGINT, r[3]::BIGINT, r[4] ->> '$',
                    r[5] ->> '$', coalesce(r[6], 'null'::JSON), r[7] ->> '$', r[8]::INTEGER
             FROM (SELECT unnest(w) AS r FROM read_json($path, format = 'newline_delimited',
                   columns = {'w': 'JSON[][]'}, maximum_object_size = $longest))""",
-                    {"run_id": run_id, "path": str(path), "longest": max(longest, 1 << 20)})
+            {"run_id": run_id, "path": str(path), "longest": max(longest, 1 << 20)},
+        )
     except duckdb.Error:
         _insert_write_rows(con, run_id, orjson.loads(b"[" + b",".join(lines) + b"]"))
     finally:
@@ -515,12 +538,16 @@ def _insert_status_rows(con, run_id: str, rows: list[list]) -> None:
     if not rows:
         return
     columns = list(zip(*rows, strict=True))
-    table = pa.table({"seq": pa.array(columns[0], pa.int64()),
-                      "t_ns": pa.array(columns[1], pa.int64()),
-                      "tick": pa.array(columns[2], pa.int64()),
-                      "uid": pa.array(columns[3], pa.int32()),
-                      "prev_status": pa.array(columns[4], pa.string()),
-                      "status": pa.array(columns[5], pa.string())})
+    table = pa.table(
+        {
+            "seq": pa.array(columns[0], pa.int64()),
+            "t_ns": pa.array(columns[1], pa.int64()),
+            "tick": pa.array(columns[2], pa.int64()),
+            "uid": pa.array(columns[3], pa.int32()),
+            "prev_status": pa.array(columns[4], pa.string()),
+            "status": pa.array(columns[5], pa.string()),
+        }
+    )
     _insert_arrow(con, "transitions", run_id, table)
 
 
@@ -529,14 +556,18 @@ def _insert_write_rows(con, run_id: str, rows: list[list]) -> None:
         return
     columns = list(zip(*rows, strict=True))
     values = [orjson.dumps(v).decode() for v in columns[5]]
-    table = pa.table({"seq": pa.array(columns[0], pa.int64()),
-                      "t_ns": pa.array(columns[1], pa.int64()),
-                      "tick": pa.array(columns[2], pa.int64()),
-                      "scope": pa.array(columns[3], pa.string()),
-                      "key": pa.array(columns[4], pa.string()),
-                      "value": pa.array(values, pa.string()),
-                      "type": pa.array(columns[6], pa.string()),
-                      "writer_uid": pa.array(columns[7], pa.int32())})
+    table = pa.table(
+        {
+            "seq": pa.array(columns[0], pa.int64()),
+            "t_ns": pa.array(columns[1], pa.int64()),
+            "tick": pa.array(columns[2], pa.int64()),
+            "scope": pa.array(columns[3], pa.string()),
+            "key": pa.array(columns[4], pa.string()),
+            "value": pa.array(values, pa.string()),
+            "type": pa.array(columns[6], pa.string()),
+            "writer_uid": pa.array(columns[7], pa.int32()),
+        }
+    )
     _insert_arrow(con, "blackboard", run_id, table)
 
 
@@ -544,17 +575,24 @@ def _insert_tick_rows(con, run_id: str, rows: list[list]) -> None:
     if not rows:
         return
     columns = list(zip(*rows, strict=True))
-    table = pa.table({"tick": pa.array(columns[0], pa.int64()),
-                      "start_ns": pa.array(columns[1], pa.int64()),
-                      "end_ns": pa.array(columns[2], pa.int64()),
-                      "root_status": pa.array(columns[3], pa.string())})
+    table = pa.table(
+        {
+            "tick": pa.array(columns[0], pa.int64()),
+            "start_ns": pa.array(columns[1], pa.int64()),
+            "end_ns": pa.array(columns[2], pa.int64()),
+            "root_status": pa.array(columns[3], pa.string()),
+        }
+    )
     _insert_arrow(con, "ticks", run_id, table)
 
 
 def _insert_rows(con, run_id: str, table: str, rows: list[list]) -> None:
     """Insert decoded JSON rows (the slow path) into ``table``."""
-    inserts = {"transitions": _insert_status_rows, "blackboard": _insert_write_rows,
-               "ticks": _insert_tick_rows}
+    inserts = {
+        "transitions": _insert_status_rows,
+        "blackboard": _insert_write_rows,
+        "ticks": _insert_tick_rows,
+    }
     inserts[table](con, run_id, rows)
 
 
@@ -564,8 +602,10 @@ def _insert_arrow(con, table_name: str, run_id: str, table: pa.Table) -> None:
     con.register(view, table)
     try:
         names = ", ".join(table.column_names)
-        con.execute(f"INSERT INTO {table_name} (run_id, {names}) SELECT $run_id, {names} "
-                    f"FROM {view}", {"run_id": run_id})
+        con.execute(
+            f"INSERT INTO {table_name} (run_id, {names}) SELECT $run_id, {names} FROM {view}",
+            {"run_id": run_id},
+        )
     finally:
         con.unregister(view)
 
@@ -579,14 +619,18 @@ def _load_other_messages(con, run_id: str, collected: _Collected, name: str) -> 
             message = orjson.loads(payload)
             status.extend(message.get("status", ()))
             writes.extend(message.get("writes", ()))
-        ticks = [row for payload in collected.other_ticks
-                 for row in orjson.loads(payload).get("ticks", ())]
+        ticks = [
+            row
+            for payload in collected.other_ticks
+            for row in orjson.loads(payload).get("ticks", ())
+        ]
         _insert_status_rows(con, run_id, status)
         _insert_write_rows(con, run_id, writes)
         _insert_tick_rows(con, run_id, ticks)
     except (ValueError, TypeError, AttributeError, IndexError, duckdb.Error) as error:
-        raise RecordingError(f"{name}: a message does not follow the btlog format: "
-                             f"{type(error).__name__}: {error}") from None
+        raise RecordingError(
+            f"{name}: a message does not follow the btlog format: {type(error).__name__}: {error}"
+        ) from None
 
 
 # -- the small tables ---------------------------------------------------------------------
@@ -611,18 +655,48 @@ def _node_rows(tree: dict, mutations: list[dict]) -> list[tuple]:
         for record in records:
             parent = record.get("parent_uid")
             depth[record["uid"]] = 0 if parent is None else depth.get(parent, -1) + 1
-            rows.append((record["uid"], parent, record.get("idx", 0), depth[record["uid"]],
-                         record["kind"], record["type"], record.get("name", ""),
-                         record.get("path", ""), orjson.dumps(record.get("ports", {})).decode(),
-                         added_seq))
+            rows.append(
+                (
+                    record["uid"],
+                    parent,
+                    record.get("idx", 0),
+                    depth[record["uid"]],
+                    record["kind"],
+                    record["type"],
+                    record.get("name", ""),
+                    record.get("path", ""),
+                    orjson.dumps(record.get("ports", {})).decode(),
+                    added_seq,
+                )
+            )
     return rows
 
 
 def _insert_nodes(con, run_id: str, tree: dict, mutations: list[dict]) -> None:
-    names = ("uid", "parent_uid", "idx", "depth", "kind", "type", "name", "path", "ports",
-             "added_seq")
-    types = (pa.int32(), pa.int32(), pa.int32(), pa.int32(), pa.string(), pa.string(),
-             pa.string(), pa.string(), pa.string(), pa.int64())
+    names = (
+        "uid",
+        "parent_uid",
+        "idx",
+        "depth",
+        "kind",
+        "type",
+        "name",
+        "path",
+        "ports",
+        "added_seq",
+    )
+    types = (
+        pa.int32(),
+        pa.int32(),
+        pa.int32(),
+        pa.int32(),
+        pa.string(),
+        pa.string(),
+        pa.string(),
+        pa.string(),
+        pa.string(),
+        pa.int64(),
+    )
     rows = _node_rows(tree, mutations)
     columns = list(zip(*rows, strict=True)) if rows else [()] * len(names)
     table = pa.table({n: pa.array(c, t) for n, c, t in zip(names, columns, types, strict=True)})
@@ -632,21 +706,45 @@ def _insert_nodes(con, run_id: str, tree: dict, mutations: list[dict]) -> None:
 def _insert_mutations(con, run_id: str, mutations: list[dict]) -> None:
     for message in mutations:
         nodes = message.get("nodes") or [{}]
-        con.execute("INSERT INTO mutations VALUES ($1, $2, $3, $4, $5, $6, $7, $8)",
-                    [run_id, message["seq"], message["t_ns"], message["op"],
-                     message["parent_uid"], message.get("after_uid"),
-                     message.get("inserted_root_uid", nodes[0].get("uid")),
-                     message.get("question", "")])
-        con.execute("INSERT INTO _mutations VALUES ($1, $2, $3, $4, $5)",
-                    [run_id, message["seq"], message["t_ns"], message.get("tick", 0),
-                     orjson.dumps(message).decode()])
+        con.execute(
+            "INSERT INTO mutations VALUES ($1, $2, $3, $4, $5, $6, $7, $8)",
+            [
+                run_id,
+                message["seq"],
+                message["t_ns"],
+                message["op"],
+                message["parent_uid"],
+                message.get("after_uid"),
+                message.get("inserted_root_uid", nodes[0].get("uid")),
+                message.get("question", ""),
+            ],
+        )
+        con.execute(
+            "INSERT INTO _mutations VALUES ($1, $2, $3, $4, $5)",
+            [
+                run_id,
+                message["seq"],
+                message["t_ns"],
+                message.get("tick", 0),
+                orjson.dumps(message).decode(),
+            ],
+        )
 
 
 def _insert_answers(con, run_id: str, answers: list[dict]) -> None:
     for message in answers:
-        con.execute("INSERT INTO _answers VALUES ($1, $2, $3, $4, $5, $6, $7)",
-                    [run_id, message.get("seq"), message.get("t_ns"), message.get("tick"),
-                     message.get("question"), message.get("intent"), message.get("answer")])
+        con.execute(
+            "INSERT INTO _answers VALUES ($1, $2, $3, $4, $5, $6, $7)",
+            [
+                run_id,
+                message.get("seq"),
+                message.get("t_ns"),
+                message.get("tick"),
+                message.get("question"),
+                message.get("intent"),
+                message.get("answer"),
+            ],
+        )
 
 
 @dataclass(frozen=True)
@@ -662,20 +760,32 @@ class Extent:
 
 
 def _extent(con, run_id: str) -> Extent:
-    events, last_seq, last_t, last_tick = first_row(con, """
+    events, last_seq, last_t, last_tick = first_row(
+        con,
+        """
         SELECT count(*), max(seq), max(t_ns), max(tick) FROM (
             SELECT seq, t_ns, tick FROM transitions WHERE run_id = $run_id
             UNION ALL SELECT seq, t_ns, tick FROM blackboard WHERE run_id = $run_id
             UNION ALL SELECT seq, t_ns, tick FROM _mutations WHERE run_id = $run_id)""",
-                                                  {"run_id": run_id})
+        {"run_id": run_id},
+    )
     tick_end, tick_max = first_row(
-        con, "SELECT max(end_ns), max(tick) FROM ticks WHERE run_id = $run_id",
-        {"run_id": run_id})
-    final = first_row(con, "SELECT root_status FROM ticks WHERE run_id = $run_id "
-                      "ORDER BY tick DESC LIMIT 1", {"run_id": run_id})
+        con, "SELECT max(end_ns), max(tick) FROM ticks WHERE run_id = $run_id", {"run_id": run_id}
+    )
+    final = first_row(
+        con,
+        "SELECT root_status FROM ticks WHERE run_id = $run_id ORDER BY tick DESC LIMIT 1",
+        {"run_id": run_id},
+    )
     last_t = last_t or 0
-    return Extent(events, last_seq, last_t, max(last_tick or 0, tick_max or 0),
-                  max(last_t, tick_end or 0), None if final is None else final[0])
+    return Extent(
+        events,
+        last_seq,
+        last_t,
+        max(last_tick or 0, tick_max or 0),
+        max(last_t, tick_end or 0),
+        None if final is None else final[0],
+    )
 
 
 def _seq_space(extent: Extent) -> int:
@@ -683,8 +793,7 @@ def _seq_space(extent: Extent) -> int:
     return 0 if extent.last_seq is None else extent.last_seq + 1
 
 
-def _insert_run(con, run_id: str, path: str, tree: dict, metadata: dict,
-                extent: Extent) -> None:
+def _insert_run(con, run_id: str, path: str, tree: dict, metadata: dict, extent: Extent) -> None:
     started = metadata.get("started_at")
     try:
         started_at = datetime.fromisoformat(started) if started else None
@@ -693,11 +802,20 @@ def _insert_run(con, run_id: str, path: str, tree: dict, metadata: dict,
     if started_at is not None and started_at.tzinfo is not None:
         started_at = started_at.astimezone(UTC).replace(tzinfo=None)
     seed = str(metadata.get("seed", "")).strip()
-    con.execute("INSERT INTO runs VALUES ($1, $2, $3, $4, $5, $6, $7, $8, $9)",
-                [run_id, path, tree.get("tree_name", ""), started_at, extent.duration_ns,
-                 extent.final_status, metadata.get("domain") or None,
-                 int(seed) if seed.lstrip("-").isdigit() else None,
-                 orjson.dumps(metadata, default=repr).decode()])
+    con.execute(
+        "INSERT INTO runs VALUES ($1, $2, $3, $4, $5, $6, $7, $8, $9)",
+        [
+            run_id,
+            path,
+            tree.get("tree_name", ""),
+            started_at,
+            extent.duration_ns,
+            extent.final_status,
+            metadata.get("domain") or None,
+            int(seed) if seed.lstrip("-").isdigit() else None,
+            orjson.dumps(metadata, default=repr).decode(),
+        ],
+    )
 
 
 # -- snapshots: the fold, in blocks ------------------------------------------------------------
@@ -717,8 +835,9 @@ class EventBatch:
 
     def __post_init__(self) -> None:
         others = self.writes + self.mutations if self.mutations else self.writes
-        self.others: list[BlackboardWrite | TreeMutation] = sorted(others, key=_seq_of) \
-            if self.mutations else others
+        self.others: list[BlackboardWrite | TreeMutation] = (
+            sorted(others, key=_seq_of) if self.mutations else others
+        )
         self._other_seqs = [e.seq for e in self.others]
 
     def fold(self, projection: StateProjection, lo: int, hi: int) -> None:
@@ -730,8 +849,14 @@ class EventBatch:
         on_status, codes = projection.on_status, _STATUS_BY_CODE
         pending = other_seqs[k] if k < last else hi
         for seq, t_ns, tick, uid, prev, status in zip(
-                seqs[i:end], self.t_ns[i:end], self.tick[i:end], self.uid[i:end],
-                self.prev[i:end], self.status[i:end], strict=True):
+            seqs[i:end],
+            self.t_ns[i:end],
+            self.tick[i:end],
+            self.uid[i:end],
+            self.prev[i:end],
+            self.status[i:end],
+            strict=True,
+        ):
             while pending < seq:
                 _apply_other(projection, others[k])
                 k += 1
@@ -773,10 +898,12 @@ class EventBatch:
         are kept apart, in ``_mutations``)."""
         i, j = bisect_left(self.seq, lo), bisect_left(self.seq, hi)
         write_seqs = [w.seq for w in self.writes] if self.mutations else self._other_seqs
-        writes = [list(w) for w in
-                  self.writes[bisect_left(write_seqs, lo):bisect_left(write_seqs, hi)]]
-        columns = [c[i:j] for c in (self.seq, self.t_ns, self.tick, self.uid, self.prev,
-                                    self.status)]
+        writes = [
+            list(w) for w in self.writes[bisect_left(write_seqs, lo) : bisect_left(write_seqs, hi)]
+        ]
+        columns = [
+            c[i:j] for c in (self.seq, self.t_ns, self.tick, self.uid, self.prev, self.status)
+        ]
         data = orjson.dumps({"status": columns, "writes": writes}, default=repr)
         return zstandard.ZstdCompressor(level=1).compress(data)
 
@@ -788,23 +915,32 @@ class EventBatch:
         return cls(*message["status"], writes, mutations)
 
 
-def fetch_events(con, run_id: str, lo: int, hi: int, mutations: list[TreeMutation],
-                 prefix: str = "") -> EventBatch:
+def fetch_events(
+    con, run_id: str, lo: int, hi: int, mutations: list[TreeMutation], prefix: str = ""
+) -> EventBatch:
     """The events with ``lo <= seq < hi`` of a run, from the tables (``prefix``: the
     catalog, e.g. ``"run0."``)."""
     params = {"run_id": run_id, "lo": lo, "hi": hi}
-    table = con.sql(f"""SELECT seq, t_ns, tick, uid, enum_code(prev_status),
+    table = con.sql(
+        f"""SELECT seq, t_ns, tick, uid, enum_code(prev_status),
             enum_code(status) FROM {prefix}transitions
         WHERE run_id = $run_id AND seq >= $lo AND seq < $hi ORDER BY seq""",
-                    params=params).to_arrow_table()
+        params=params,
+    ).to_arrow_table()
     columns = [column.to_pylist() for column in table.columns]
-    rows = con.execute(f"""SELECT seq, t_ns, tick, scope, key, value, type, writer_uid
+    rows = con.execute(
+        f"""SELECT seq, t_ns, tick, scope, key, value, type, writer_uid
         FROM {prefix}blackboard WHERE run_id = $run_id AND seq >= $lo AND seq < $hi
-        ORDER BY seq""", params).fetchall()
+        ORDER BY seq""",
+        params,
+    ).fetchall()
     loads = orjson.loads
-    writes = [BlackboardWrite(seq, t, tick, scope, key, None if value is None else loads(value),
-                              kind, writer)
-              for seq, t, tick, scope, key, value, kind, writer in rows]
+    writes = [
+        BlackboardWrite(
+            seq, t, tick, scope, key, None if value is None else loads(value), kind, writer
+        )
+        for seq, t, tick, scope, key, value, kind, writer in rows
+    ]
     return EventBatch(*columns, writes, [m for m in mutations if lo <= m.seq < hi])
 
 
@@ -821,8 +957,10 @@ def _apply_other(projection: StateProjection, event: BlackboardWrite | TreeMutat
 
 def load_mutations(con, run_id: str, prefix: str = "") -> list[TreeMutation]:
     """Every mutation of a run, in seq order."""
-    rows = con.execute(f"SELECT message FROM {prefix}_mutations WHERE run_id = $run_id "
-                       "ORDER BY seq", {"run_id": run_id}).fetchall()
+    rows = con.execute(
+        f"SELECT message FROM {prefix}_mutations WHERE run_id = $run_id ORDER BY seq",
+        {"run_id": run_id},
+    ).fetchall()
     return [fmt.decode_mutation(orjson.loads(message)) for (message,) in rows]
 
 
@@ -839,36 +977,51 @@ def build_snapshots(con, run_id: str, tree: Tree, events: int, every: int) -> in
         batch = fetch_events(con, run_id, lo, hi, mutations)
         for start in range(lo, hi, every):
             stop = min(start + every, hi)
-            rows.append(_snapshot_row(projection.state, start, batch.first_keys(start, stop),
-                                      batch.block(start, stop)))
+            rows.append(
+                _snapshot_row(
+                    projection.state, start, batch.first_keys(start, stop), batch.block(start, stop)
+                )
+            )
             batch.fold(projection, start, stop)
     if events % every == 0:
-        rows.append(_snapshot_row(projection.state, events, None,
-                                  EventBatch([], [], [], [], [], [], []).block(0, 0)))
+        rows.append(
+            _snapshot_row(
+                projection.state, events, None, EventBatch([], [], [], [], [], [], []).block(0, 0)
+            )
+        )
     _insert_snapshots(con, run_id, rows)
     return len(rows)
 
 
-def _snapshot_row(state: State, seq: int, first: tuple[int, int] | None,
-                  block: bytes) -> tuple:
+def _snapshot_row(state: State, seq: int, first: tuple[int, int] | None, block: bytes) -> tuple:
     first_t, first_tick = (None, None) if first is None else first
-    return (seq, state.t_ns, state.tick, first_t, first_tick,
-            orjson.dumps(state.to_json(), default=repr).decode(), block)
+    return (
+        seq,
+        state.t_ns,
+        state.tick,
+        first_t,
+        first_tick,
+        orjson.dumps(state.to_json(), default=repr).decode(),
+        block,
+    )
 
 
 def _insert_snapshots(con, run_id: str, rows: list[tuple]) -> None:
     names = ("seq", "t_ns", "tick", "first_t_ns", "first_tick", "state", "events")
-    types = (pa.int64(), pa.int64(), pa.int64(), pa.int64(), pa.int64(), pa.string(),
-             pa.binary())
+    types = (pa.int64(), pa.int64(), pa.int64(), pa.int64(), pa.int64(), pa.string(), pa.binary())
     columns = list(zip(*rows, strict=True))
     table = pa.table({n: pa.array(c, t) for n, c, t in zip(names, columns, types, strict=True)})
     _insert_arrow(con, "_snapshots", run_id, table)
 
 
 # -- one recording, end to end --------------------------------------------------------------
-def ingest(con: duckdb.DuckDBPyConnection, path: str | os.PathLike, run_id: str | None = None,
-           snapshot_every: int = DEFAULT_SNAPSHOT_EVERY, snapshots: bool = True
-           ) -> IngestReport:
+def ingest(
+    con: duckdb.DuckDBPyConnection,
+    path: str | os.PathLike,
+    run_id: str | None = None,
+    snapshot_every: int = DEFAULT_SNAPSHOT_EVERY,
+    snapshots: bool = True,
+) -> IngestReport:
     """Load the recording at ``path`` into ``con`` (whose tables ``create_schema`` made)
     as run ``run_id`` (default: ``short_run_id``): ``load_tables``, then
     ``add_snapshots`` unless ``snapshots`` is false (the tables alone serve SQL, not
@@ -883,9 +1036,12 @@ def ingest(con: duckdb.DuckDBPyConnection, path: str | os.PathLike, run_id: str 
     return add_snapshots(con, report) if snapshots else report
 
 
-def load_tables(con: duckdb.DuckDBPyConnection, path: str | os.PathLike,
-                run_id: str | None = None, snapshot_every: int = DEFAULT_SNAPSHOT_EVERY
-                ) -> IngestReport:
+def load_tables(
+    con: duckdb.DuckDBPyConnection,
+    path: str | os.PathLike,
+    run_id: str | None = None,
+    snapshot_every: int = DEFAULT_SNAPSHOT_EVERY,
+) -> IngestReport:
     """Every table of the run but ``_snapshots`` (see ``ingest``)."""
     if snapshot_every < 1:
         raise ValueError(f"snapshot_every must be at least 1, got {snapshot_every}")
@@ -900,10 +1056,19 @@ def load_tables(con: duckdb.DuckDBPyConnection, path: str | os.PathLike,
         _insert_small_tables(con, run_id, collected)
         extent = _extent(con, run_id)
         _insert_run(con, run_id, name, collected.tree, metadata, extent)
-        report = IngestReport(run_id, name, _seq_space(extent), *_counts(con, run_id),
-                              len(collected.mutations), collected.truncated,
-                              _warnings(name, collected, extent),
-                              time.perf_counter() - started, 0.0, 0, snapshot_every)
+        report = IngestReport(
+            run_id,
+            name,
+            _seq_space(extent),
+            *_counts(con, run_id),
+            len(collected.mutations),
+            collected.truncated,
+            _warnings(name, collected, extent),
+            time.perf_counter() - started,
+            0.0,
+            0,
+            snapshot_every,
+        )
         _insert_ingest(con, report, stat, extent, collected.tree)
     except BaseException:
         discard_run(con, run_id)
@@ -915,14 +1080,22 @@ def add_snapshots(con: duckdb.DuckDBPyConnection, report: IngestReport) -> Inges
     """Fold the run loaded by ``load_tables`` and store its snapshots; the report with
     the snapshot figures."""
     started = time.perf_counter()
-    (tree,) = first_row(con, "SELECT tree FROM _ingest WHERE run_id = $run_id",
-                        {"run_id": report.run_id})
+    (tree,) = first_row(
+        con, "SELECT tree FROM _ingest WHERE run_id = $run_id", {"run_id": report.run_id}
+    )
     try:
-        stored = build_snapshots(con, report.run_id, Tree.from_description(orjson.loads(tree)),
-                                 report.events, report.snapshot_every)
+        stored = build_snapshots(
+            con,
+            report.run_id,
+            Tree.from_description(orjson.loads(tree)),
+            report.events,
+            report.snapshot_every,
+        )
         seconds = time.perf_counter() - started
-        con.execute("UPDATE _ingest SET snapshot_seconds = $seconds WHERE run_id = $run_id",
-                    {"seconds": seconds, "run_id": report.run_id})
+        con.execute(
+            "UPDATE _ingest SET snapshot_seconds = $seconds WHERE run_id = $run_id",
+            {"seconds": seconds, "run_id": report.run_id},
+        )
     except BaseException:
         con.execute("DELETE FROM _snapshots WHERE run_id = $run_id", {"run_id": report.run_id})
         raise
@@ -941,8 +1114,9 @@ def _tree(name: str, message: dict | None) -> Tree:
     try:
         return Tree.from_description(message)
     except (KeyError, TypeError, StopIteration) as error:
-        raise RecordingError(f"{name}: the {fmt.TREE_TOPIC} message is not a tree: "
-                             f"{type(error).__name__}: {error}") from None
+        raise RecordingError(
+            f"{name}: the {fmt.TREE_TOPIC} message is not a tree: {type(error).__name__}: {error}"
+        ) from None
 
 
 def _load_rows(con, run_id: str, name: str) -> _Collected:
@@ -956,8 +1130,9 @@ def _load_rows(con, run_id: str, name: str) -> _Collected:
             loader.close()
             if isinstance(error, RecordingError):
                 raise
-            raise RecordingError(f"{name}: rows that do not follow the btlog format: "
-                                 f"{type(error).__name__}: {error}") from None
+            raise RecordingError(
+                f"{name}: rows that do not follow the btlog format: {type(error).__name__}: {error}"
+            ) from None
         except BaseException:
             loader.close()
             raise
@@ -974,28 +1149,45 @@ def _insert_small_tables(con, run_id: str, collected: _Collected) -> None:
 
 
 def _counts(con, run_id: str) -> tuple[int, int, int]:
-    return tuple(first_row(con, f"SELECT count(*) FROM {table} WHERE run_id = $run_id",
-                           {"run_id": run_id})[0]
-                 for table in ("transitions", "blackboard", "ticks"))
+    return tuple(
+        first_row(con, f"SELECT count(*) FROM {table} WHERE run_id = $run_id", {"run_id": run_id})[
+            0
+        ]
+        for table in ("transitions", "blackboard", "ticks")
+    )
 
 
 def _warnings(name: str, collected: _Collected, extent: Extent) -> list[str]:
     warnings = list(collected.warnings)
     if extent.events and extent.last_seq != extent.events - 1:
-        warnings.append(f"{name}: events are not gap-free: {extent.events} events up to "
-                        f"seq {extent.last_seq}")
+        warnings.append(
+            f"{name}: events are not gap-free: {extent.events} events up to seq {extent.last_seq}"
+        )
     if collected.truncated:
         last = "(none)" if extent.last_seq is None else f"up to seq {extent.last_seq}"
         warnings.insert(0, f"{name}: truncated recording; read {extent.events} events {last}")
     return warnings
 
 
-def _insert_ingest(con, report: IngestReport, stat: os.stat_result, extent: Extent,
-                   tree: dict) -> None:
-    con.execute("INSERT INTO _ingest VALUES ($1, $2, $3, $4, $5, $6, $7, $8, $9, $10, $11, "
-                "$12, $13, $14)",
-                [report.run_id, report.file, stat.st_size, stat.st_mtime_ns,
-                 btlog.SCHEMA_VERSION, INGEST_VERSION, _seq_space(extent), extent.last_tick,
-                 report.truncated, orjson.dumps(report.warnings).decode(),
-                 report.snapshot_every, orjson.dumps(tree).decode(), report.ingest_seconds,
-                 None])
+def _insert_ingest(
+    con, report: IngestReport, stat: os.stat_result, extent: Extent, tree: dict
+) -> None:
+    con.execute(
+        "INSERT INTO _ingest VALUES ($1, $2, $3, $4, $5, $6, $7, $8, $9, $10, $11, $12, $13, $14)",
+        [
+            report.run_id,
+            report.file,
+            stat.st_size,
+            stat.st_mtime_ns,
+            btlog.SCHEMA_VERSION,
+            INGEST_VERSION,
+            _seq_space(extent),
+            extent.last_tick,
+            report.truncated,
+            orjson.dumps(report.warnings).decode(),
+            report.snapshot_every,
+            orjson.dumps(tree).decode(),
+            report.ingest_seconds,
+            None,
+        ],
+    )

@@ -40,10 +40,11 @@ SEQ = "seq"
 END = "end"
 WALL = "wall"
 
-_UNITS = {"": 1_000_000_000, "s": 1_000_000_000, "ms": 1_000_000, "us": 1_000, "µs": 1_000,
-          "ns": 1}
-_DURATION = re.compile(r"^(?P<sign>[+-]?)(?P<number>\d+(?:\.\d*)?|\.\d+)\s*"
-                       r"(?P<unit>s|ms|us|µs|ns)?$")
+_UNITS = {"": 1_000_000_000, "s": 1_000_000_000, "ms": 1_000_000, "us": 1_000, "µs": 1_000, "ns": 1}
+_DURATION = re.compile(
+    r"^(?P<sign>[+-]?)(?P<number>\d+(?:\.\d*)?|\.\d+)\s*"
+    r"(?P<unit>s|ms|us|µs|ns)?$"
+)
 _COUNTER = re.compile(r"^(?P<kind>tick|seq)\s*:\s*(?P<number>\d+)$")
 _ISO_HINT = re.compile(r"^\d{4}-\d{2}-\d{2}")
 
@@ -118,8 +119,10 @@ def parse_moment(text: str | Moment) -> Moment:
         return _duration(duration, text)
     if _ISO_HINT.match(value):
         return _wall(value, text)
-    raise MomentError(f"unparseable moment {text!r}: expected seconds (12.5, 12.5s, 1500ms, "
-                      "250us, 100ns), -2s, tick:N, seq:N, end or an ISO-8601 time")
+    raise MomentError(
+        f"unparseable moment {text!r}: expected seconds (12.5, 12.5s, 1500ms, "
+        "250us, 100ns), -2s, tick:N, seq:N, end or an ISO-8601 time"
+    )
 
 
 def _duration(match: re.Match, text: str) -> Moment:
@@ -180,16 +183,18 @@ def _at_seq(moment: Moment, run: RunExtent) -> Resolved:
     if run.events == 0:
         raise MomentError(f"moment {moment.text!r} is outside the run: it has no events")
     if moment.value >= run.events:
-        raise MomentError(f"moment {moment.text!r} is after the end of the run "
-                          f"(last event seq:{run.events - 1})")
+        raise MomentError(
+            f"moment {moment.text!r} is after the end of the run (last event seq:{run.events - 1})"
+        )
     count = moment.value + 1
     return Resolved(moment, count, run.time_of(count))
 
 
 def _at_tick(moment: Moment, run: RunExtent) -> Resolved:
     if moment.value > run.last_tick:
-        raise MomentError(f"moment {moment.text!r} is after the end of the run "
-                          f"(last tick {run.last_tick})")
+        raise MomentError(
+            f"moment {moment.text!r} is after the end of the run (last tick {run.last_tick})"
+        )
     count = run.count_after_tick(moment.value)
     return Resolved(moment, count, run.time_of(count))
 
@@ -200,19 +205,25 @@ def _time_since_start(moment: Moment, run: RunExtent) -> int:
     if moment.kind == BEFORE_END:
         t_ns = run.duration_ns - moment.value
         if t_ns < 0:
-            raise MomentError(f"moment {moment.text!r} is before the start of the run "
-                              f"(it lasts {_seconds(run.duration_ns)})")
+            raise MomentError(
+                f"moment {moment.text!r} is before the start of the run "
+                f"(it lasts {_seconds(run.duration_ns)})"
+            )
         return t_ns
     if run.started_at_ns is None:
-        raise MomentError(f"moment {moment.text!r} is a wall time, but the recording has "
-                          "no start time (metadata started_at)")
+        raise MomentError(
+            f"moment {moment.text!r} is a wall time, but the recording has "
+            "no start time (metadata started_at)"
+        )
     wall = moment.value
     if moment.naive:
         wall -= _zone_offset_ns(run.started_at_zone)
     t_ns = wall - run.started_at_ns
     if t_ns < 0:
-        raise MomentError(f"moment {moment.text!r} is before the start of the run "
-                          f"({_iso(run.started_at_ns, run.started_at_zone)})")
+        raise MomentError(
+            f"moment {moment.text!r} is before the start of the run "
+            f"({_iso(run.started_at_ns, run.started_at_zone)})"
+        )
     return t_ns
 
 
@@ -223,8 +234,9 @@ def _zone_offset_ns(zone: object) -> int:
 
 def _at_time(moment: Moment, t_ns: int, run: RunExtent) -> Resolved:
     if t_ns > run.duration_ns:
-        raise MomentError(f"moment {moment.text!r} is after the end of the run "
-                          f"({_seconds(run.duration_ns)})")
+        raise MomentError(
+            f"moment {moment.text!r} is after the end of the run ({_seconds(run.duration_ns)})"
+        )
     return Resolved(moment, run.count_at(t_ns), t_ns)
 
 

@@ -62,7 +62,9 @@ class State:
     def to_json(self) -> dict:
         """A JSON-ready snapshot (mutations are kept apart, by the read model)."""
         return {
-            "seq": self.seq, "t_ns": self.t_ns, "tick": self.tick,
+            "seq": self.seq,
+            "t_ns": self.t_ns,
+            "tick": self.tick,
             "status": {str(k): int(v) for k, v in self.status.items()},
             "activation": {str(k): v for k, v in self.activation.items()},
             "last_failure": {str(k): v for k, v in self.last_failure.items()},
@@ -75,7 +77,9 @@ class State:
     def from_json(cls, data: dict, mutations: list[TreeMutation] = ()) -> State:
         """Rebuild a snapshot written by ``to_json``."""
         return cls(
-            seq=data["seq"], t_ns=data["t_ns"], tick=data["tick"],
+            seq=data["seq"],
+            t_ns=data["t_ns"],
+            tick=data["tick"],
             status={int(k): Status(v) for k, v in data["status"].items()},
             activation={int(k): v for k, v in data["activation"].items()},
             last_failure={int(k): v for k, v in data["last_failure"].items()},
@@ -101,13 +105,17 @@ class StateProjection(Subscriber):
 
     def _index_tree(self) -> None:
         self._execution = {n.uid for n in self.tree if n.kind in EXECUTION_KINDS}
-        self._retry_parent = {n.uid: n.parent.uid for n in self.tree
-                              if n.parent is not None and n.parent.type == RETRY_TYPE}
+        self._retry_parent = {
+            n.uid: n.parent.uid
+            for n in self.tree
+            if n.parent is not None and n.parent.type == RETRY_TYPE
+        }
         self._retries = {n.uid for n in self.tree if n.type == RETRY_TYPE}
 
     # -- the fold ----------------------------------------------------------------------
-    def on_status(self, seq: int, t_ns: int, tick: int, uid: int, prev: Status,
-                  status: Status) -> None:
+    def on_status(
+        self, seq: int, t_ns: int, tick: int, uid: int, prev: Status, status: Status
+    ) -> None:
         """Apply a status change."""
         state = self.state
         state.seq = seq + 1
@@ -126,8 +134,17 @@ class StateProjection(Subscriber):
         if status is not IDLE and uid in self._execution:
             state.last_leaf = uid
 
-    def on_write(self, seq: int, t_ns: int, tick: int, scope: str, key: str, value: Any,
-                 type_name: str, writer_uid: int | None) -> None:
+    def on_write(
+        self,
+        seq: int,
+        t_ns: int,
+        tick: int,
+        scope: str,
+        key: str,
+        value: Any,
+        type_name: str,
+        writer_uid: int | None,
+    ) -> None:
         """Apply a blackboard write (or removal)."""
         state = self.state
         state.seq = seq + 1

@@ -139,8 +139,9 @@ def _status(value: Any, source: str, where: str, key: str, required: bool) -> st
     if text is None:
         return None
     if text.strip().upper() not in _STATUS_NAMES:
-        raise _fail(source, where, f"{key} {text!r} is not a status "
-                    f"(one of {', '.join(_STATUS_NAMES)})")
+        raise _fail(
+            source, where, f"{key} {text!r} is not a status (one of {', '.join(_STATUS_NAMES)})"
+        )
     return text.strip().upper()
 
 
@@ -160,8 +161,9 @@ def _entries(data: dict, key: str, source: str) -> list[tuple[str, dict]]:
 def _check_keys(entry: dict, allowed: tuple[str, ...], source: str, where: str) -> None:
     unknown = [k for k in entry if k not in allowed]
     if unknown:
-        raise _fail(source, where, f"unknown key {str(unknown[0])!r} (expected "
-                    f"{', '.join(allowed)})")
+        raise _fail(
+            source, where, f"unknown key {str(unknown[0])!r} (expected {', '.join(allowed)})"
+        )
 
 
 def _answer(where: str, entry: dict, source: str, partial: bool) -> AnswerExpectation:
@@ -171,19 +173,27 @@ def _answer(where: str, entry: dict, source: str, partial: bool) -> AnswerExpect
         parse_question(ask)
     except UnknownQuestion:
         raise _fail(source, where, f"unknown question {ask!r}") from None
-    return AnswerExpectation(where, _text(entry.get("at"), source, where, "at"), ask,
-                             _text(entry.get("answer"), source, where, "answer", not partial))
+    return AnswerExpectation(
+        where,
+        _text(entry.get("at"), source, where, "at"),
+        ask,
+        _text(entry.get("answer"), source, where, "answer", not partial),
+    )
 
 
 def _status_entry(where: str, entry: dict, source: str, partial: bool) -> StatusExpectation:
     _check_keys(entry, ("at", "node", "status"), source, where)
-    return StatusExpectation(where, _text(entry.get("at"), source, where, "at"),
-                             _text(entry.get("node"), source, where, "node"),
-                             _status(entry.get("status"), source, where, "status", not partial))
+    return StatusExpectation(
+        where,
+        _text(entry.get("at"), source, where, "at"),
+        _text(entry.get("node"), source, where, "node"),
+        _status(entry.get("status"), source, where, "status", not partial),
+    )
 
 
-def parse_expectations(data: Any, source: str = "expectations",
-                       partial: bool = False) -> Expectations:
+def parse_expectations(
+    data: Any, source: str = "expectations", partial: bool = False
+) -> Expectations:
     """Expectations from a mapping (as in the YAML file).
 
     ``partial`` accepts entries whose expected value is missing (``answer``, ``status``):
@@ -199,11 +209,13 @@ def parse_expectations(data: Any, source: str = "expectations",
         raise _fail(source, "rerun", "must be true or false")
     return Expectations(
         source=source,
-        final_status=_status(data.get("final_status"), source, "final_status", "final_status",
-                             False),
+        final_status=_status(
+            data.get("final_status"), source, "final_status", "final_status", False
+        ),
         answers=[_answer(w, e, source, partial) for w, e in _entries(data, "answers", source)],
-        statuses=[_status_entry(w, e, source, partial)
-                  for w, e in _entries(data, "statuses", source)],
+        statuses=[
+            _status_entry(w, e, source, partial) for w, e in _entries(data, "statuses", source)
+        ],
         run=_text(data.get("run"), source, "run", "run", False),
         rerun=rerun_flag,
         data=data,
@@ -293,8 +305,9 @@ class StoredRun:
             raise LookupError(f"node {node!r} matches no node of the tree")
         if len(found) > 1:
             paths = ", ".join(repr(n.path) for n in found[:3])
-            raise LookupError(f"node {node!r} matches {len(found)} nodes; use a path "
-                              f"(e.g. {paths})")
+            raise LookupError(
+                f"node {node!r} matches {len(found)} nodes; use a path (e.g. {paths})"
+            )
         return state.status_of(found[0].uid).name
 
     @property
@@ -325,16 +338,24 @@ class CheckResult:
         """Readable lines: a one-line verdict, then expected/actual on failure."""
         if self.ok:
             return f"ok    {self.what}"
-        lines = [f"FAIL  {self.what}", f"        expected: {self.expected}",
-                 f"        actual:   {self.actual}"]
+        lines = [
+            f"FAIL  {self.what}",
+            f"        expected: {self.expected}",
+            f"        actual:   {self.actual}",
+        ]
         if self.detail:
             lines += ["        " + line if line else "" for line in self.detail.splitlines()]
         return "\n".join(lines)
 
     def to_json(self) -> dict:
         """JSON-ready form."""
-        return {"ok": self.ok, "what": self.what, "expected": self.expected,
-                "actual": self.actual, **({"detail": self.detail} if self.detail else {})}
+        return {
+            "ok": self.ok,
+            "what": self.what,
+            "expected": self.expected,
+            "actual": self.actual,
+            **({"detail": self.detail} if self.detail else {}),
+        }
 
 
 def _entry_error(source: str, where: str, error: Exception) -> ExpectationError:
@@ -354,8 +375,12 @@ def check_answer(run: StoredRun, item: AnswerExpectation, source: str) -> CheckR
     except (ValueError, LookupError) as error:
         raise _entry_error(source, item.where, error) from None
     expected = (item.answer or "").strip()
-    return CheckResult(actual.strip() == expected,
-                       f'{item.where}: answer at {item.at} to "{item.ask}"', expected, actual)
+    return CheckResult(
+        actual.strip() == expected,
+        f'{item.where}: answer at {item.at} to "{item.ask}"',
+        expected,
+        actual,
+    )
 
 
 def check_status(run: StoredRun, item: StatusExpectation, source: str) -> CheckResult:
@@ -364,13 +389,17 @@ def check_status(run: StoredRun, item: StatusExpectation, source: str) -> CheckR
         actual = run.status(item.at, item.node)
     except (ValueError, LookupError) as error:
         raise _entry_error(source, item.where, error) from None
-    return CheckResult(actual == item.status,
-                       f'{item.where}: status of "{item.node}" at {item.at}',
-                       item.status or "", actual)
+    return CheckResult(
+        actual == item.status,
+        f'{item.where}: status of "{item.node}" at {item.at}',
+        item.status or "",
+        actual,
+    )
 
 
-def _as_expectations(expectations: Expectations | dict | str | os.PathLike,
-                     partial: bool = False) -> Expectations:
+def _as_expectations(
+    expectations: Expectations | dict | str | os.PathLike, partial: bool = False
+) -> Expectations:
     if isinstance(expectations, Expectations):
         return expectations
     if isinstance(expectations, dict):
@@ -378,8 +407,9 @@ def _as_expectations(expectations: Expectations | dict | str | os.PathLike,
     return load_expectations(expectations, partial)
 
 
-def check_run(run_path: str | os.PathLike | StoredRun,
-              expectations: Expectations | dict | str | os.PathLike) -> list[CheckResult]:
+def check_run(
+    run_path: str | os.PathLike | StoredRun, expectations: Expectations | dict | str | os.PathLike
+) -> list[CheckResult]:
     """Check a stored run against expectations (parsed, a mapping, or a file).
 
     One result per check, in file order: final status, answers, statuses. Bad entries
@@ -401,8 +431,10 @@ def _check(run: StoredRun, expected: Expectations) -> list[CheckResult]:
     return results
 
 
-def record_expectations(run_path: str | os.PathLike | StoredRun,
-                        existing: Expectations | dict | str | os.PathLike | None = None) -> dict:
+def record_expectations(
+    run_path: str | os.PathLike | StoredRun,
+    existing: Expectations | dict | str | os.PathLike | None = None,
+) -> dict:
     """The expectations mapping with every expected value replaced by the run's actual one
     (for re-recording). The final status is always recorded; entries keep their moments,
     questions and nodes, and other keys are kept as they are."""
@@ -421,14 +453,22 @@ def _record(run: StoredRun, expected: Expectations) -> dict:
     recorded["final_status"] = run.final_status
     if expected.answers:
         recorded["answers"] = [
-            {"at": item.at, "ask": item.ask,
-             "answer": check_answer(run, item, expected.source).actual}
-            for item in expected.answers]
+            {
+                "at": item.at,
+                "ask": item.ask,
+                "answer": check_answer(run, item, expected.source).actual,
+            }
+            for item in expected.answers
+        ]
     if expected.statuses:
         recorded["statuses"] = [
-            {"at": item.at, "node": item.node,
-             "status": check_status(run, item, expected.source).actual}
-            for item in expected.statuses]
+            {
+                "at": item.at,
+                "node": item.node,
+                "status": check_status(run, item, expected.source).actual,
+            }
+            for item in expected.statuses
+        ]
     if "rerun" in data:
         recorded["rerun"] = data["rerun"]
     return recorded
@@ -468,11 +508,16 @@ class RerunReport:
 
     def to_json(self) -> dict:
         """JSON-ready form."""
-        return {"run": self.run, "tree": self.tree, "tree_changed": self.tree_changed,
-                "ok": self.ok, "recorded_status": self.recorded_status,
-                "rerun_status": self.rerun_status,
-                "checks": [result.to_json() for result in self.results],
-                "divergence": to_json(self.divergence)}
+        return {
+            "run": self.run,
+            "tree": self.tree,
+            "tree_changed": self.tree_changed,
+            "ok": self.ok,
+            "recorded_status": self.recorded_status,
+            "rerun_status": self.rerun_status,
+            "checks": [result.to_json() for result in self.results],
+            "divergence": to_json(self.divergence),
+        }
 
 
 def tree_for_rerun(run_path: str | os.PathLike, metadata: dict, tree: str | None = None) -> str:
@@ -483,14 +528,18 @@ def tree_for_rerun(run_path: str | os.PathLike, metadata: dict, tree: str | None
         return os.fspath(tree)
     recorded = metadata.get("tree_file") or ""
     folder = Path(run_path).resolve().parent
-    candidates = [metadata.get("tree_file_abs") or "",
-                  *(base / recorded for base in (folder, *folder.parents)), recorded,
-                  folder / Path(recorded).name]
+    candidates = [
+        metadata.get("tree_file_abs") or "",
+        *(base / recorded for base in (folder, *folder.parents)),
+        recorded,
+        folder / Path(recorded).name,
+    ]
     for candidate in candidates:
         if str(candidate) and Path(candidate).is_file():
             return os.fspath(candidate)
-    raise RerunError(f"{os.fspath(run_path)}: the recorded tree file {recorded!r} is not "
-                     "found; pass --tree TREE")
+    raise RerunError(
+        f"{os.fspath(run_path)}: the recorded tree file {recorded!r} is not found; pass --tree TREE"
+    )
 
 
 def _sha256(path: str) -> str:
@@ -498,8 +547,11 @@ def _sha256(path: str) -> str:
 
 
 def _action_text(action: ExecutedAction) -> str:
-    return f'"{action.description}" (in {action.parent})' if action.parent else \
-        f'"{action.description}"'
+    return (
+        f'"{action.description}" (in {action.parent})'
+        if action.parent
+        else f'"{action.description}"'
+    )
 
 
 def subgoal_check(found: SubgoalDivergence) -> CheckResult:
@@ -536,11 +588,28 @@ def rerun(run_path: str | os.PathLike, tree: str | os.PathLike | None = None) ->
         result = execute(config, Path(folder) / "rerun.mcap")
         again = open_recording(result.path)
     recorded_status = final_status_of(recorded)
-    divergence = diverge(executed_actions(recorded), executed_actions(again),
-                         f"{os.fspath(run_path)} (recorded)", f"{tree_path} (re-run)")
-    results = [CheckResult(recorded_status == result.final_status.name, "final status",
-                           recorded_status, result.final_status.name)]
+    divergence = diverge(
+        executed_actions(recorded),
+        executed_actions(again),
+        f"{os.fspath(run_path)} (recorded)",
+        f"{tree_path} (re-run)",
+    )
+    results = [
+        CheckResult(
+            recorded_status == result.final_status.name,
+            "final status",
+            recorded_status,
+            result.final_status.name,
+        )
+    ]
     results += [subgoal_check(found) for found in divergence.subgoals]
     changed = _sha256(tree_path) != recorded.metadata.get("tree_sha256")
-    return RerunReport(os.fspath(run_path), tree_path, changed, recorded_status,
-                       result.final_status.name, divergence, results)
+    return RerunReport(
+        os.fspath(run_path),
+        tree_path,
+        changed,
+        recorded_status,
+        result.final_status.name,
+        divergence,
+        results,
+    )

@@ -47,8 +47,12 @@ class BtlogCheckFailed(AssertionError):
 def pytest_addoption(parser: pytest.Parser) -> None:
     """Add ``--btlog-update``."""
     group = parser.getgroup("btlog", "regression tests on stored behavior-tree runs")
-    group.addoption(UPDATE_OPTION, action="store_true", default=False,
-                    help="re-record btlog expectation files from the runs instead of failing")
+    group.addoption(
+        UPDATE_OPTION,
+        action="store_true",
+        default=False,
+        help="re-record btlog expectation files from the runs instead of failing",
+    )
 
 
 def pytest_configure(config: pytest.Config) -> None:
@@ -113,8 +117,7 @@ class ExpectFile(pytest.File):
             yield ExpectItem.from_parent(self, name="final_status", kind="final_status")
         for kind, entries in (("answers", expected.answers), ("statuses", expected.statuses)):
             for index, _entry in enumerate(entries):
-                yield ExpectItem.from_parent(self, name=f"{kind}[{index}]", kind=kind,
-                                             index=index)
+                yield ExpectItem.from_parent(self, name=f"{kind}[{index}]", kind=kind, index=index)
         if expected.rerun:
             yield ExpectItem.from_parent(self, name="rerun", kind="rerun")
 
@@ -248,8 +251,12 @@ def btlog_expect(request: pytest.FixtureRequest):
     Returns the check results."""
     from btlog.testing import expectations as ex
 
-    def expect(run_path: str | os.PathLike, expectations: dict | str | os.PathLike | None = None,
-               rerun: bool = False, tree: str | os.PathLike | None = None) -> list:
+    def expect(
+        run_path: str | os.PathLike,
+        expectations: dict | str | os.PathLike | None = None,
+        rerun: bool = False,
+        tree: str | os.PathLike | None = None,
+    ) -> list:
         path = _resolve(request, run_path)
         results: list = []
         if expectations is not None:
@@ -278,6 +285,9 @@ def _expect(request: pytest.FixtureRequest, path: Path, expectations) -> list:
     results = ex.check_run(path, expectations)
     failed = [result for result in results if not result.ok]
     if failed:
-        pytest.fail(f"{path}: {len(failed)} of {len(results)} checks failed\n"
-                    + "\n".join(result.report() for result in failed), pytrace=False)
+        pytest.fail(
+            f"{path}: {len(failed)} of {len(results)} checks failed\n"
+            + "\n".join(result.report() for result in failed),
+            pytrace=False,
+        )
     return results

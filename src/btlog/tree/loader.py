@@ -42,12 +42,21 @@ from btlog.tree.registry import (
 
 MAX_XML_BYTES = 8 * 1024 * 1024
 MAX_INCLUDE_DEPTH = 16
-GENERIC_TAGS = {"Action": ACTION, "Condition": CONDITION, "Control": CONTROL,
-                "Decorator": DECORATOR}
+GENERIC_TAGS = {
+    "Action": ACTION,
+    "Condition": CONDITION,
+    "Control": CONTROL,
+    "Decorator": DECORATOR,
+}
 SUBTREE_TAGS = ("SubTree", "SubTreePlus")
 V3_IGNORED = frozenset({"__shared_blackboard", "__autoremap", "_description"})
-MODEL_KINDS = {"Action": ACTION, "Condition": CONDITION, "Control": CONTROL,
-               "Decorator": DECORATOR, "SubTree": SUBTREE}
+MODEL_KINDS = {
+    "Action": ACTION,
+    "Condition": CONDITION,
+    "Control": CONTROL,
+    "Decorator": DECORATOR,
+    "SubTree": SUBTREE,
+}
 #: Built-in nodes whose port holds a script, checked when the tree is loaded.
 SCRIPT_PORTS = {"Script": "code", "ScriptCondition": "code", "Precondition": "if"}
 MODEL_PORT_TAGS = {"input_port": "input", "output_port": "output", "inout_port": "inout"}
@@ -78,9 +87,15 @@ class _Document:
 
 
 def _parser() -> etree.XMLParser:
-    return etree.XMLParser(resolve_entities=False, no_network=True, load_dtd=False,
-                           dtd_validation=False, huge_tree=False, remove_comments=True,
-                           remove_pis=True)
+    return etree.XMLParser(
+        resolve_entities=False,
+        no_network=True,
+        load_dtd=False,
+        dtd_validation=False,
+        huge_tree=False,
+        remove_comments=True,
+        remove_pis=True,
+    )
 
 
 def parse_xml(data: bytes, file: str) -> etree._Element:
@@ -98,8 +113,9 @@ def parse_xml(data: bytes, file: str) -> etree._Element:
     return document.getroot()
 
 
-def load_tree(source: str | os.PathLike, registry: Registry | None = None,
-              main_tree: str | None = None) -> Tree:
+def load_tree(
+    source: str | os.PathLike, registry: Registry | None = None, main_tree: str | None = None
+) -> Tree:
     """Load a tree from an XML file (its includes resolved against its folder)."""
     path = Path(source)
     try:
@@ -109,9 +125,13 @@ def load_tree(source: str | os.PathLike, registry: Registry | None = None,
     return _Loader(registry or Registry()).load(data, str(source), path.parent, main_tree)
 
 
-def load_tree_text(text: str | bytes, registry: Registry | None = None,
-                   main_tree: str | None = None, file: str = "<string>",
-                   base_dir: str | os.PathLike = ".") -> Tree:
+def load_tree_text(
+    text: str | bytes,
+    registry: Registry | None = None,
+    main_tree: str | None = None,
+    file: str = "<string>",
+    base_dir: str | os.PathLike = ".",
+) -> Tree:
     """Load a tree from XML text; includes resolve against ``base_dir``."""
     data = text.encode() if isinstance(text, str) else text
     return _Loader(registry or Registry()).load(data, file, Path(base_dir), main_tree)
@@ -136,28 +156,36 @@ class _Loader:
             raise TreeError("no <BehaviorTree> is defined", file, first.root.sourceline)
         if main is None:
             if len(self.definitions) != 1:
-                raise TreeError("several <BehaviorTree> and no main_tree_to_execute", file,
-                                first.root.sourceline)
+                raise TreeError(
+                    "several <BehaviorTree> and no main_tree_to_execute",
+                    file,
+                    first.root.sourceline,
+                )
             main = next(iter(self.definitions))
         if main not in self.definitions:
             raise TreeError(f"main tree {main!r} is not defined", file, first.root.sourceline)
         definition = self.definitions[main]
-        root = self._build_tree_root(main, definition, parent=None, scope="", prefix="",
-                                     ancestors=(main,))
-        return Tree(root=root, name=main, format=self.format,
-                    files=[d.file for d in self.documents])
+        root = self._build_tree_root(
+            main, definition, parent=None, scope="", prefix="", ancestors=(main,)
+        )
+        return Tree(
+            root=root, name=main, format=self.format, files=[d.file for d in self.documents]
+        )
 
-    def _read_document(self, data: bytes, file: str, folder: Path, depth: int,
-                       seen: tuple[str, ...]) -> None:
+    def _read_document(
+        self, data: bytes, file: str, folder: Path, depth: int, seen: tuple[str, ...]
+    ) -> None:
         root = parse_xml(data, file)
         if root.tag != "root":
-            raise TreeError(f"the top element must be <root>, not <{root.tag}>", file,
-                            root.sourceline)
+            raise TreeError(
+                f"the top element must be <root>, not <{root.tag}>", file, root.sourceline
+            )
         fmt = root.get("BTCPP_format")
         if fmt is not None and fmt.strip() not in ("3", "4"):
             raise TreeError(f"unsupported BTCPP_format {fmt!r} (3 or 4)", file, root.sourceline)
-        document = _Document(file, root, int(fmt) if fmt else None,
-                             root.get("main_tree_to_execute"))
+        document = _Document(
+            file, root, int(fmt) if fmt else None, root.get("main_tree_to_execute")
+        )
         self.documents.append(document)
         children = [c for c in root if isinstance(c.tag, str)]
         for element in children:
@@ -168,41 +196,52 @@ class _Loader:
             elif element.tag == "include":
                 self._include(element, file, folder, depth, (*seen, file))
             else:
-                raise TreeError(f"unexpected element <{element.tag}> under <root>", file,
-                                element.sourceline)
+                raise TreeError(
+                    f"unexpected element <{element.tag}> under <root>", file, element.sourceline
+                )
 
     def _define(self, element: etree._Element, file: str, siblings: int) -> None:
         tree_id = element.get("ID")
         if tree_id is None:
             if siblings > 1:
-                raise TreeError("<BehaviorTree> needs an ID when <root> has several children",
-                                file, element.sourceline)
+                raise TreeError(
+                    "<BehaviorTree> needs an ID when <root> has several children",
+                    file,
+                    element.sourceline,
+                )
             tree_id = f"BehaviorTree_{len(self.definitions)}"
         if tree_id in self.definitions:
             raise TreeError(f"tree {tree_id!r} is defined twice", file, element.sourceline)
         nodes = [c for c in element if isinstance(c.tag, str)]
         if len(nodes) != 1:
-            raise TreeError(f"<BehaviorTree ID={tree_id!r}> must have exactly one child, "
-                            f"found {len(nodes)}", file, element.sourceline)
+            raise TreeError(
+                f"<BehaviorTree ID={tree_id!r}> must have exactly one child, found {len(nodes)}",
+                file,
+                element.sourceline,
+            )
         self.definitions[tree_id] = _Definition(element, file)
 
-    def _include(self, element: etree._Element, file: str, folder: Path, depth: int,
-                 seen: tuple[str, ...]) -> None:
+    def _include(
+        self, element: etree._Element, file: str, folder: Path, depth: int, seen: tuple[str, ...]
+    ) -> None:
         target = element.get("path")
         if not target:
             raise TreeError("<include> needs a path attribute", file, element.sourceline)
         if element.get("ros_pkg"):
-            raise TreeError("<include ros_pkg=…> needs ROS, which btlog does not use", file,
-                            element.sourceline)
+            raise TreeError(
+                "<include ros_pkg=…> needs ROS, which btlog does not use", file, element.sourceline
+            )
         path = (folder / target).resolve()
         if depth >= MAX_INCLUDE_DEPTH or str(path) in {str(Path(s).resolve()) for s in seen}:
-            raise TreeError(f"include cycle or nesting too deep at {target!r}", file,
-                            element.sourceline)
+            raise TreeError(
+                f"include cycle or nesting too deep at {target!r}", file, element.sourceline
+            )
         try:
             data = path.read_bytes()
         except OSError as error:
-            raise TreeError(f"cannot read included file {target!r}: {error.strerror}", file,
-                            element.sourceline) from None
+            raise TreeError(
+                f"cannot read included file {target!r}: {error.strerror}", file, element.sourceline
+            ) from None
         self._read_document(data, str(path), path.parent, depth + 1, seen)
 
     def _read_model(self, element: etree._Element, file: str) -> None:
@@ -212,38 +251,63 @@ class _Loader:
             kind = MODEL_KINDS.get(entry.tag)
             type_id = entry.get("ID")
             if kind is None or not type_id:
-                raise TreeError(f"<{entry.tag}> in <TreeNodesModel> needs a known tag and an ID",
-                                file, entry.sourceline)
+                raise TreeError(
+                    f"<{entry.tag}> in <TreeNodesModel> needs a known tag and an ID",
+                    file,
+                    entry.sourceline,
+                )
             ports = {}
             for port in entry:
                 if not isinstance(port.tag, str):
                     continue
                 direction = MODEL_PORT_TAGS.get(port.tag)
                 if direction is None or not port.get("name"):
-                    raise TreeError(f"unexpected <{port.tag}> in the model of {type_id!r}", file,
-                                    port.sourceline)
-                ports[port.get("name")] = PortSpec(direction, port.get("type") or "str",
-                                                   port.get("default"), (port.text or "").strip())
+                    raise TreeError(
+                        f"unexpected <{port.tag}> in the model of {type_id!r}",
+                        file,
+                        port.sourceline,
+                    )
+                ports[port.get("name")] = PortSpec(
+                    direction,
+                    port.get("type") or "str",
+                    port.get("default"),
+                    (port.text or "").strip(),
+                )
             existing = self.registry.get(type_id)
             if kind == SUBTREE:
                 self.registry.register(NodeType(type_id, SUBTREE, ports, declared_only=True))
             elif existing is None or existing.declared_only:
                 children = {CONTROL: (1, None), DECORATOR: (1, 1)}.get(kind, (0, 0))
-                self.registry.register(NodeType(type_id, kind, ports, children=children,
-                                                declared_only=True))
+                self.registry.register(
+                    NodeType(type_id, kind, ports, children=children, declared_only=True)
+                )
 
     # -- nodes -------------------------------------------------------------------------
     def _next_uid(self) -> int:
         self.uid += 1
         return self.uid
 
-    def _build_tree_root(self, tree_id: str, definition: _Definition, parent: Node | None,
-                         scope: str, prefix: str, ancestors: tuple[str, ...]) -> Node:
+    def _build_tree_root(
+        self,
+        tree_id: str,
+        definition: _Definition,
+        parent: Node | None,
+        scope: str,
+        prefix: str,
+        ancestors: tuple[str, ...],
+    ) -> Node:
         element = next(c for c in definition.element if isinstance(c.tag, str))
         return self._build(element, definition.file, parent, scope, prefix, ancestors)
 
-    def _build(self, element: etree._Element, file: str, parent: Node | None, scope: str,
-               prefix: str, ancestors: tuple[str, ...]) -> Node:
+    def _build(
+        self,
+        element: etree._Element,
+        file: str,
+        parent: Node | None,
+        scope: str,
+        prefix: str,
+        ancestors: tuple[str, ...],
+    ) -> Node:
         line = element.sourceline or 0
         tag = element.tag
         children = [c for c in element if isinstance(c.tag, str)]
@@ -256,8 +320,9 @@ class _Loader:
         else:
             type_id = tag
             if element.get("ID") is not None:
-                raise TreeError(f"<{tag}> must not have an ID attribute (use <Action ID=…>)",
-                                file, line)
+                raise TreeError(
+                    f"<{tag}> must not have an ID attribute (use <Action ID=…>)", file, line
+                )
         node_type = self.registry.get(type_id)
         strict = node_type is not None
         if node_type is None:
@@ -265,29 +330,48 @@ class _Loader:
                 raise TreeError(f"unknown node type {type_id!r} with children", file, line)
             node_type = NodeType(type_id, leaf_kind(tag))
         elif node_type.declared_only and node_type.kind in (CONTROL, DECORATOR):
-            raise TreeError(f"node type {type_id!r} is declared in <TreeNodesModel> but btlog "
-                            "has no implementation of it", file, line)
+            raise TreeError(
+                f"node type {type_id!r} is declared in <TreeNodesModel> but btlog "
+                "has no implementation of it",
+                file,
+                line,
+            )
         if node_type.kind == SUBTREE:
             raise TreeError(f"{type_id!r} is a subtree; use <SubTree ID={type_id!r}/>", file, line)
         type_id = node_type.id
         low, high = node_type.children
         if len(children) < low or (high is not None and len(children) > high):
-            expected = str(low) if low == high else f"at least {low}" if high is None \
+            expected = (
+                str(low)
+                if low == high
+                else f"at least {low}"
+                if high is None
                 else f"{low} to {high}"
-            raise TreeError(f"{type_id} must have {expected} children, found {len(children)}",
-                            file, line)
+            )
+            raise TreeError(
+                f"{type_id} must have {expected} children, found {len(children)}", file, line
+            )
         uid = self._next_uid()
         name = element.get("name", type_id)
-        node = Node(uid=uid, type=type_id, name=name, kind=node_type.kind, parent=parent,
-                    scope=scope, file=file, line=line)
+        node = Node(
+            uid=uid,
+            type=type_id,
+            name=name,
+            kind=node_type.kind,
+            parent=parent,
+            scope=scope,
+            file=file,
+            line=line,
+        )
         node.path = prefix + name + (f"::{uid}" if name == type_id else "")
         node.ports, node.attributes = self._ports(element, node_type, strict, file, line)
         for child in children:
             node.children.append(self._build(child, file, node, scope, prefix, ancestors))
         return node
 
-    def _ports(self, element: etree._Element, node_type: NodeType, strict: bool, file: str,
-               line: int) -> tuple[dict[str, Port], dict[str, str]]:
+    def _ports(
+        self, element: etree._Element, node_type: NodeType, strict: bool, file: str, line: int
+    ) -> tuple[dict[str, Port], dict[str, str]]:
         """Ports as written plus declared defaults; a known type's unknown port is an error
         (a type declared only by an empty model entry accepts any port)."""
         ports: dict[str, Port] = {}
@@ -312,8 +396,15 @@ class _Loader:
             _check_script(ports[script_port].value, script_port, file, line)
         return ports, attributes
 
-    def _build_subtree(self, element: etree._Element, file: str, parent: Node | None,
-                       scope: str, prefix: str, ancestors: tuple[str, ...]) -> Node:
+    def _build_subtree(
+        self,
+        element: etree._Element,
+        file: str,
+        parent: Node | None,
+        scope: str,
+        prefix: str,
+        ancestors: tuple[str, ...],
+    ) -> Node:
         line = element.sourceline or 0
         subtree_id = element.get("ID")
         if not subtree_id:
@@ -323,13 +414,21 @@ class _Loader:
         if subtree_id not in self.definitions:
             raise TreeError(f"subtree {subtree_id!r} is not defined", file, line)
         if subtree_id in ancestors:
-            chain = " -> ".join((*ancestors[ancestors.index(subtree_id):], subtree_id))
+            chain = " -> ".join((*ancestors[ancestors.index(subtree_id) :], subtree_id))
             raise TreeError(f"subtree cycle: {chain}", file, line)
         v3_plain = self.format == 3 and element.tag == "SubTree"
         uid = self._next_uid()
         name = subtree_id if v3_plain else element.get("name", subtree_id)
-        node = Node(uid=uid, type="SubTree", name=name, kind=SUBTREE, parent=parent, scope=scope,
-                    file=file, line=line)
+        node = Node(
+            uid=uid,
+            type="SubTree",
+            name=name,
+            kind=SUBTREE,
+            parent=parent,
+            scope=scope,
+            file=file,
+            line=line,
+        )
         node.path = prefix + name + (f"::{uid}" if name == subtree_id and not v3_plain else "")
         attributes = {"subtree_id": subtree_id}
         ports: dict[str, Port] = {}
@@ -355,15 +454,26 @@ class _Loader:
             inner = scope if shared else (f"{scope}/" if scope else "") + subtree_id
         else:
             given = element.get("name")
-            inner = (f"{scope}/" if scope else "") + (given if given else
-                                                      f"{subtree_id}::{uid}")
-        child = self._build_tree_root(subtree_id, self.definitions[subtree_id], node, inner,
-                                      inner + "/", (*ancestors, subtree_id))
+            inner = (f"{scope}/" if scope else "") + (given if given else f"{subtree_id}::{uid}")
+        child = self._build_tree_root(
+            subtree_id,
+            self.definitions[subtree_id],
+            node,
+            inner,
+            inner + "/",
+            (*ancestors, subtree_id),
+        )
         node.children.append(child)
         return node
 
-    def _apply_subtree_model(self, subtree_id: str, ports: dict[str, Port],
-                             attributes: dict[str, str], file: str, line: int) -> None:
+    def _apply_subtree_model(
+        self,
+        subtree_id: str,
+        ports: dict[str, Port],
+        attributes: dict[str, str],
+        file: str,
+        line: int,
+    ) -> None:
         model = self.registry.get(subtree_id)
         if model is None or model.kind != SUBTREE:
             return
@@ -374,12 +484,17 @@ class _Loader:
             if spec.default is not None:
                 ports[port_name] = Port(spec.default, spec.direction)
             elif not autoremap:
-                raise TreeError(f"subtree {subtree_id!r}: port {port_name!r} is neither "
-                                "remapped nor given a default", file, line)
+                raise TreeError(
+                    f"subtree {subtree_id!r}: port {port_name!r} is neither "
+                    "remapped nor given a default",
+                    file,
+                    line,
+                )
 
 
-def _special_attribute(attribute: str, value: str, attributes: dict[str, str], file: str,
-                       line: int) -> bool:
+def _special_attribute(
+    attribute: str, value: str, attributes: dict[str, str], file: str, line: int
+) -> bool:
     """Keep a reserved or ``_``-prefixed attribute (checking pre/post-condition scripts)
     and return True; return False for a port, after checking that its name is valid."""
     if attribute in RESERVED or attribute.startswith("_"):
@@ -399,15 +514,17 @@ def _allowed_port_name(name: str) -> bool:
     return bool(name) and name[0].isalpha() and not (set(name) & _FORBIDDEN_PORT_CHARS)
 
 
-def _check_literal(value: str, spec: PortSpec, port: str, type_id: str, file: str,
-                   line: int) -> None:
+def _check_literal(
+    value: str, spec: PortSpec, port: str, type_id: str, file: str, line: int
+) -> None:
     from btlog.executor.ports import PortValueError, convert
 
     try:
         convert(value, spec.type)
     except PortValueError as error:
-        raise TreeError(f"{type_id}: bad value {value!r} for port {port!r}: {error}", file,
-                        line) from None
+        raise TreeError(
+            f"{type_id}: bad value {value!r} for port {port!r}: {error}", file, line
+        ) from None
 
 
 def _check_script(code: str, attribute: str, file: str, line: int) -> None:

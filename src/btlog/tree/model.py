@@ -119,8 +119,9 @@ class Node:
             "name": self.name,
             "path": self.path,
             "scope": self.scope,
-            "ports": {k: {"value": p.value, "direction": p.direction}
-                      for k, p in self.ports.items()},
+            "ports": {
+                k: {"value": p.value, "direction": p.direction} for k, p in self.ports.items()
+            },
             "attributes": dict(self.attributes),
             "file": self.file,
             "line": self.line,
@@ -193,14 +194,16 @@ class Tree:
     def find(self, key: str) -> list[Node]:
         """Nodes matching an outcomes/expectations key: its path, its name, or (for a
         nameless node) its type. A key may match several nodes."""
-        return [n for n in self if n.path == key or n.name == key
-                or (not n.name and n.type == key)]
+        return [n for n in self if n.path == key or n.name == key or (not n.name and n.type == key)]
 
     def lookup(self, key: str) -> list[Node]:
         """The nodes a key names when one node is wanted: by path, else by name, else
         nameless nodes by type (several when the key is ambiguous)."""
-        for matches in ([n for n in self if n.path == key], [n for n in self if n.name == key],
-                        [n for n in self if not n.name and n.type == key]):
+        for matches in (
+            [n for n in self if n.path == key],
+            [n for n in self if n.name == key],
+            [n for n in self if not n.name and n.type == key],
+        ):
             if matches:
                 return matches
         return []
@@ -218,8 +221,9 @@ class Tree:
         """Rebuild a tree from its ``/btlog/tree`` message."""
         nodes = link_nodes(message["nodes"])
         root = next(n for n in nodes if n.parent is None)
-        return cls(root=root, name=message.get("tree_name", "MainTree"),
-                   format=message.get("format", 4))
+        return cls(
+            root=root, name=message.get("tree_name", "MainTree"), format=message.get("format", 4)
+        )
 
     def copy_subtree(self, node: Node, first_uid: int) -> Node:
         """A deep copy of ``node``'s subtree with fresh uids from ``first_uid``, parentless."""
@@ -227,10 +231,18 @@ class Tree:
 
         def clone(original: Node) -> Node:
             nonlocal uid
-            copy = Node(uid=uid, type=original.type, name=original.name, kind=original.kind,
-                        ports=dict(original.ports), attributes=dict(original.attributes),
-                        path=original.path, scope=original.scope, file=original.file,
-                        line=original.line)
+            copy = Node(
+                uid=uid,
+                type=original.type,
+                name=original.name,
+                kind=original.kind,
+                ports=dict(original.ports),
+                attributes=dict(original.attributes),
+                path=original.path,
+                scope=original.scope,
+                file=original.file,
+                line=original.line,
+            )
             uid += 1
             for child in original.children:
                 child_copy = clone(child)

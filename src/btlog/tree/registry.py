@@ -88,16 +88,25 @@ def _builtins() -> dict[str, NodeType]:
         NodeType("ReactiveSequence", CONTROL, children=many),
         NodeType("Fallback", CONTROL, children=many),
         NodeType("ReactiveFallback", CONTROL, children=many),
-        NodeType("Parallel", CONTROL, {
-            "success_count": _in("int", "-1"), "failure_count": _in("int", "1"),
-            # v3 spellings
-            "success_threshold": _in("int"), "failure_threshold": _in("int"),
-        }, children=many),
+        NodeType(
+            "Parallel",
+            CONTROL,
+            {
+                "success_count": _in("int", "-1"),
+                "failure_count": _in("int", "1"),
+                # v3 spellings
+                "success_threshold": _in("int"),
+                "failure_threshold": _in("int"),
+            },
+            children=many,
+        ),
         NodeType("ParallelAll", CONTROL, {"max_failures": _in("int", "1")}, children=many),
         NodeType("IfThenElse", CONTROL, children=(2, 3)),
         NodeType("WhileDoElse", CONTROL, children=(2, 3)),
-        *(NodeType(f"Switch{n}", CONTROL, _switch_ports(n), children=(n + 1, n + 1))
-          for n in range(2, 7)),
+        *(
+            NodeType(f"Switch{n}", CONTROL, _switch_ports(n), children=(n + 1, n + 1))
+            for n in range(2, 7)
+        ),
         NodeType("Inverter", DECORATOR, children=one),
         NodeType("ForceSuccess", DECORATOR, children=one),
         NodeType("ForceFailure", DECORATOR, children=one),
@@ -107,15 +116,17 @@ def _builtins() -> dict[str, NodeType]:
         NodeType("RunOnce", DECORATOR, {"then_skip": _in("bool", "true")}, children=one),
         NodeType("Delay", DECORATOR, {"delay_msec": _in("int")}, children=one),
         NodeType("Timeout", DECORATOR, {"msec": _in("int")}, children=one),
-        NodeType("Precondition", DECORATOR,
-                 {"if": _in(), "else": _in("status", "FAILURE")}, children=one),
+        NodeType(
+            "Precondition", DECORATOR, {"if": _in(), "else": _in("status", "FAILURE")}, children=one
+        ),
         NodeType("SubTree", SUBTREE, children=one),
         NodeType("AlwaysSuccess", ACTION),
         NodeType("AlwaysFailure", ACTION),
         NodeType("Script", ACTION, {"code": _in()}),
         NodeType("ScriptCondition", CONDITION, {"code": _in()}),
-        NodeType("SetBlackboard", ACTION, {
-            "value": _in("any"), "output_key": PortSpec(INOUT, "str")}),
+        NodeType(
+            "SetBlackboard", ACTION, {"value": _in("any"), "output_key": PortSpec(INOUT, "str")}
+        ),
         NodeType("UnsetBlackboard", ACTION, {"key": _in()}),
         NodeType("Sleep", ACTION, {"msec": _in("int")}),
     ]
