@@ -115,7 +115,8 @@ def test_validate(tmp_path: Path) -> None:
             ["Inverter must have 1 children, found 2"],
         ),
         (
-            "<root BTCPP_format='4'><BehaviorTree ID='M'><SubTree ID='Nope'/></BehaviorTree></root>",
+            "<root BTCPP_format='4'><BehaviorTree ID='M'><SubTree ID='Nope'/>"
+            "</BehaviorTree></root>",
             ["subtree 'Nope' is not defined"],
         ),
         (
