@@ -7,4 +7,8 @@ rebuilt and explained with the algorithms of Han et al. (THRI 2020).
 """
 
 __version__ = "0.1.0"
-SCHEMA_VERSION = "1"
+#: "2": each message's MCAP log_time is the run's start plus its events' ``t_ns`` (the
+#: run's own clock); "1" wrote the wall time of writing. Both read the same.
+SCHEMA_VERSION = "2"
+#: Every schema version this btlog reads.
+READABLE_SCHEMA_VERSIONS = ("1", "2")

@@ -250,11 +250,10 @@ def decode_metadata(path: str, record: dict[str, str]) -> dict[str, Any]:
             except orjson.JSONDecodeError:
                 raise RecordingError(f"{path}: metadata {key!r} is not JSON") from None
     version = metadata.get("schema_version")
-    if version != btlog.SCHEMA_VERSION:
+    if version not in btlog.READABLE_SCHEMA_VERSIONS:
         found = "no schema version" if version is None else f"schema version {version!r}"
-        raise RecordingError(
-            f"{path}: {found}; this btlog reads schema version {btlog.SCHEMA_VERSION!r}"
-        )
+        readable = ", ".join(repr(v) for v in btlog.READABLE_SCHEMA_VERSIONS)
+        raise RecordingError(f"{path}: {found}; this btlog reads schema versions {readable}")
     return metadata
 
 

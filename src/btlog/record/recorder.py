@@ -22,7 +22,7 @@ import os
 import time
 import uuid
 from collections.abc import Iterable, Mapping
-from datetime import UTC, datetime
+from datetime import UTC, datetime, timedelta
 from typing import Any
 
 import orjson
@@ -46,6 +46,7 @@ MAX_BUFFERED_EVENTS = 50_000
 CHUNK_SIZE = 4 * 1024 * 1024
 XML_MEDIA_TYPE = "application/xml"
 
+_EPOCH = datetime(1970, 1, 1, tzinfo=UTC)
 _INT_MIN = -(2**63)
 _INT_LIMIT = 2**64
 
@@ -92,6 +93,17 @@ def run_metadata(metadata: Mapping[str, Any]) -> dict[str, str]:
     return record
 
 
+def start_time_ns(started_at: str) -> int:
+    """The ``started_at`` ISO-8601 time in nanoseconds since the epoch (now if unreadable)."""
+    try:
+        moment = datetime.fromisoformat(started_at)
+    except ValueError:
+        return time.time_ns()
+    if moment.tzinfo is None:
+        moment = moment.replace(tzinfo=UTC)
+    return (moment - _EPOCH) // timedelta(microseconds=1) * 1000
+
+
 def _metadata_text(key: str, value: Any) -> str:
     if key in fmt.JSON_METADATA and not isinstance(value, str):
         return orjson.dumps(value, default=repr).decode()
@@ -134,6 +146,9 @@ class Recorder(Subscriber):
         self.flush_interval = flush_interval
         self.max_tick_events = max_tick_events
         self.metadata = run_metadata(metadata)
+        #: the run's start on the wall clock: each message's MCAP log_time is this plus
+        #: the run's clock (``t_ns``), so players show the run at its own pace
+        self.start_ns = start_time_ns(self.metadata["started_at"])
         self.event_count = 0
         self.last_seq: int | None = None
         self._closed = False
@@ -165,7 +180,8 @@ class Recorder(Subscriber):
         now = time.time_ns()
         for name, data in attachments:
             writer.add_attachment(now, now, name, XML_MEDIA_TYPE, bytes(data))
-        writer.add_message(channels[fmt.TREE_TOPIC], now, fmt.dumps(tree.describe()), now)
+        start = self.start_ns
+        writer.add_message(channels[fmt.TREE_TOPIC], start, fmt.dumps(tree.describe()), now)
         writer.flush()
         return channels
 
@@ -248,7 +264,7 @@ class Recorder(Subscriber):
         if self._closed:
             return
         self._write_events()
-        self._add(fmt.MUTATIONS_TOPIC, fmt.encode_mutation(mutation))
+        self._add(fmt.MUTATIONS_TOPIC, fmt.encode_mutation(mutation), mutation.t_ns)
         self.event_count += 1
         self.last_seq = mutation.seq
 
@@ -269,6 +285,7 @@ class Recorder(Subscriber):
                 "intent": intent,
                 "answer": answer,
             },
+            t_ns,
         )
 
     def flush(self) -> None:
@@ -320,8 +337,9 @@ class Recorder(Subscriber):
         data = orjson.dumps(
             {"tick": last[2] if tick is None else tick, "status": status, "writes": writes}
         )
-        now = time.time_ns()
-        self._writer.add_message(self._events_channel, now, data, now)
+        self._writer.add_message(
+            self._events_channel, self.start_ns + last[1], data, time.time_ns()
+        )
         self.event_count += len(status) + len(writes)
         self.last_seq = last[0]
         status.clear()
@@ -329,9 +347,11 @@ class Recorder(Subscriber):
 
     def _write_ticks(self) -> None:
         if self._tick_rows:
-            self._add(fmt.TICKS_TOPIC, {"ticks": self._tick_rows})
+            self._add(fmt.TICKS_TOPIC, {"ticks": self._tick_rows}, self._tick_rows[-1][2])
             self._tick_rows = []
 
-    def _add(self, topic: str, message: dict) -> None:
-        now = time.time_ns()
-        self._writer.add_message(self._channels[topic], now, fmt.dumps(message), now)
+    def _add(self, topic: str, message: dict, t_ns: int) -> None:
+        """Write one message whose log_time is the run's start plus ``t_ns``."""
+        self._writer.add_message(
+            self._channels[topic], self.start_ns + t_ns, fmt.dumps(message), time.time_ns()
+        )

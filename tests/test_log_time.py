@@ -1,0 +1,59 @@
+"""MCAP log_time is the run's clock: start + t_ns, so players show a run at its own pace.
+
+A simulated kitting run is recorded for real and its messages are read back with the
+official MCAP reader; the committed recordings (schema version 1) still read.
+"""
+
+from __future__ import annotations
+
+from datetime import datetime
+from pathlib import Path
+
+import orjson
+import pytest
+from mcap.reader import make_reader
+
+import btlog
+from btlog.record import format as fmt
+from btlog.record import open_recording, read_metadata
+from btlog.runner import RunConfig, execute
+
+ROOT = Path(__file__).resolve().parents[1]
+OLD_RECORDING = ROOT / "recordings" / "kitting-ok.mcap"
+
+
+@pytest.fixture(scope="module")
+def kitting(tmp_path_factory: pytest.TempPathFactory) -> Path:
+    """A kitting run in which look at chuck fails once (simulated clock)."""
+    path = tmp_path_factory.mktemp("log-time") / "kitting.mcap"
+    config = RunConfig(tree=str(ROOT / "trees" / "kitting.xml"), domain="kitting")
+    config.fail = ["look at chuck"]
+    execute(config, path)
+    return path
+
+
+def test_log_time_is_start_plus_the_events_time(kitting: Path) -> None:
+    metadata = read_metadata(kitting)
+    assert metadata["schema_version"] == btlog.SCHEMA_VERSION == "2"
+    start = datetime.fromisoformat(metadata["started_at"])
+    start_ns = int(start.timestamp() * 1_000_000) * 1000
+    spans = []
+    with kitting.open("rb") as file:
+        for _schema, channel, message in make_reader(file).iter_messages(log_time_order=False):
+            if channel.topic == fmt.EVENTS_TOPIC:
+                rows = orjson.loads(message.data)
+                last = max(rows["status"] + rows["writes"], key=lambda row: row[0])
+                assert message.log_time == start_ns + last[1]
+                spans.append(message.log_time)
+            elif channel.topic == fmt.TREE_TOPIC:
+                assert message.log_time == start_ns
+    duration = open_recording(kitting).ticks[-1].end_ns
+    assert duration > 10**10  # a run of tens of simulated seconds…
+    assert spans == sorted(spans)
+    assert max(spans) - start_ns > duration * 0.9  # …spans as much log time
+
+
+def test_a_schema_version_1_recording_still_reads() -> None:
+    assert read_metadata(OLD_RECORDING)["schema_version"] == "1"
+    recording = open_recording(OLD_RECORDING)
+    assert len(recording.events) > 100
