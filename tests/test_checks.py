@@ -18,8 +18,7 @@ from pathlib import Path
 import pytest
 import yaml
 
-from btlog.runner import RunConfig, execute
-from btlog.testing.expectations import (
+from btlog.checks.expectations import (
     ExpectationError,
     check_run,
     load_expectations,
@@ -27,6 +26,7 @@ from btlog.testing.expectations import (
     rerun,
     tree_for_rerun,
 )
+from btlog.runner import RunConfig, execute
 
 ROOT = Path(__file__).resolve().parents[1]
 KITTING = ROOT / "trees" / "kitting.xml"

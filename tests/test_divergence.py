@@ -23,16 +23,10 @@ from pathlib import Path
 
 import pytest
 
-from btlog.explain.divergence import (
-    ExecutedAction,
-    diff_paths,
-    diverge,
-    executed_actions,
-    nominal_actions,
-    render,
-    to_json,
-)
+from btlog.explain.behaviours import diff_paths, executed_actions, nominal_actions
+from btlog.explain.divergence import ExecutedAction, diverge, to_json
 from btlog.record.reader import open_recording
+from btlog.render.divergence import render
 from btlog.runner import RunConfig, execute
 
 ROOT = Path(__file__).resolve().parents[1]

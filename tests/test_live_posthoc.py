@@ -19,7 +19,7 @@ from btlog.executor.engine import Executor
 from btlog.explain.questions import QUESTIONS, answer
 from btlog.record.recorder import Recorder
 from btlog.replay.database import open_runs
-from btlog.replay.state import StateProjection
+from btlog.state import StateProjection
 from btlog.tree.loader import load_tree, load_tree_text
 from btlog.tree.model import CONDITION
 from btlog.tree.registry import NodeType, Registry

@@ -12,7 +12,7 @@ from btlog.domains.outcomes import Outcomes
 from btlog.events import EventLog
 from btlog.executor.engine import Executor
 from btlog.explain.questions import answer, explain
-from btlog.replay.state import StateProjection
+from btlog.state import StateProjection
 from btlog.status import RUNNING
 from btlog.tree.loader import load_tree
 

@@ -96,7 +96,7 @@ def record(
     mutate_at: int | None = None,
 ) -> Live:
     """Run ``tree_file`` with ``outcomes`` into the recording ``path``."""
-    from btlog.replay.state import StateProjection
+    from btlog.state import StateProjection
 
     tree = load_tree(tree_file)
     executor = Executor(

@@ -1,11 +1,11 @@
-"""Tests for the O(NP) sequence comparison in :mod:`btlog.explain.sequence_diff`."""
+"""Tests for the O(NP) sequence comparison in :mod:`btlog.algorithms.sequence_diff`."""
 
 from __future__ import annotations
 
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
-from btlog.explain.sequence_diff import (
+from btlog.algorithms.sequence_diff import (
     AlignedPair,
     Alignment,
     Comparison,

@@ -28,7 +28,7 @@ from btlog.executor.clock import SimClock, WallClock
 from btlog.executor.engine import Executor
 from btlog.explain.questions import Answer, answer, parse_question
 from btlog.record.recorder import Recorder
-from btlog.replay.state import StateProjection
+from btlog.state import StateProjection
 from btlog.status import Status
 from btlog.tree.loader import load_tree
 from btlog.tree.model import Tree

@@ -16,9 +16,7 @@ from argparse import Namespace
 
 from rich.text import Text
 
-from btlog.explain.divergence import diff_paths, render_lines, to_json
-from btlog.render.terminal import make_console, safe
-from btlog.testing.expectations import (
+from btlog.checks.expectations import (
     CheckResult,
     Expectations,
     RerunReport,
@@ -26,6 +24,10 @@ from btlog.testing.expectations import (
     load_expectations,
     rerun,
 )
+from btlog.explain.behaviours import diff_paths
+from btlog.explain.divergence import to_json
+from btlog.render.divergence import render_lines
+from btlog.render.terminal import make_console, safe
 
 EXIT_OK, EXIT_CHECK_FAILED = 0, 1
 _STYLES = {

@@ -9,7 +9,7 @@ changes — and may turn a result into FAILURE when an effect cannot be carried 
 from __future__ import annotations
 
 from btlog.domains.outcomes import Effect, Outcome, Outcomes, scripted_leaf_factory
-from btlog.executor.engine import LeafFactory
+from btlog.executor.behavior import LeafFactory
 from btlog.tree.model import Node, Tree
 
 

@@ -27,8 +27,8 @@ from typing import Any
 import yaml
 
 from btlog.executor.actions import StatefulAction
+from btlog.executor.behavior import Runtime
 from btlog.executor.blackboard import Blackboard
-from btlog.executor.engine import Runtime
 from btlog.status import FAILURE, RUNNING, SUCCESS, Status
 from btlog.tree.model import CONDITION, Node, Tree
 

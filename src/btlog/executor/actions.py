@@ -20,10 +20,10 @@ from __future__ import annotations
 from typing import Any
 
 from btlog.executor.behavior import Behavior, NodeExecutionError
-from btlog.executor.script import compile_script, truthy
 from btlog.status import FAILURE, IDLE, RUNNING, SKIPPED, SUCCESS, Status
 from btlog.tree.model import INOUT, INPUT, OUTPUT
 from btlog.tree.registry import PortSpec
+from btlog.tree.script import compile_script, truthy
 
 
 def InputPort(

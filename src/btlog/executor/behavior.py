@@ -16,14 +16,26 @@ from __future__ import annotations
 from collections.abc import Callable
 from typing import TYPE_CHECKING, Any, ClassVar
 
-from btlog.executor.ports import PortValueError, convert
-from btlog.executor.script import ScriptError, compile_script, truthy
 from btlog.status import FAILURE, IDLE, RUNNING, SKIPPED, SUCCESS, Status
 from btlog.tree.model import Node, blackboard_key
+from btlog.tree.ports import PortValueError, convert
+from btlog.tree.script import ScriptError, compile_script, truthy
 
 if TYPE_CHECKING:
     from btlog.executor.blackboard import Blackboard
-    from btlog.executor.engine import Runtime
+    from btlog.executor.clock import SimClock, WallClock
+
+
+class Runtime:
+    """What every behaviour of one executor shares: the clock, the event feed, the tick."""
+
+    __slots__ = ("clock", "emit_status", "tick", "wake_up")
+
+    def __init__(self, clock: SimClock | WallClock) -> None:
+        self.clock = clock
+        self.tick = 0
+        self.wake_up = False
+        self.emit_status: Callable[[int, Status, Status], None] | None = None
 
 
 class NodeExecutionError(RuntimeError):
@@ -290,3 +302,7 @@ class DecoratorBehavior(Behavior):
     def halt(self) -> None:
         self.reset_child()
         self.reset_status()
+
+
+#: Builds the behaviour of a leaf type that has no implementation (scripted leaves).
+LeafFactory = Callable[[Node, Runtime, "Blackboard"], Behavior]

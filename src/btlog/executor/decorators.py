@@ -10,8 +10,8 @@ IDLE they instead signal a wake-up and return RUNNING, and the executor re-ticks
 from __future__ import annotations
 
 from btlog.executor.behavior import Behavior, DecoratorBehavior, NodeExecutionError
-from btlog.executor.script import compile_script, truthy
 from btlog.status import FAILURE, IDLE, RUNNING, SKIPPED, SUCCESS, Status
+from btlog.tree.script import compile_script, truthy
 
 
 class Inverter(DecoratorBehavior):

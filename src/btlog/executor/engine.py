@@ -9,37 +9,28 @@ subscriber the nodes find ``emit_status`` empty and pay nothing more.
 
 from __future__ import annotations
 
-from collections.abc import Callable, Iterable
+from collections.abc import Callable
 from typing import Any
 
 from btlog.events import Subscriber, TickRecord, TreeMutation, type_name
 from btlog.executor.actions import ACTIONS
-from btlog.executor.behavior import Behavior, ControlBehavior, NodeExecutionError
+from btlog.executor.behavior import (
+    Behavior,
+    ControlBehavior,
+    LeafFactory,
+    NodeExecutionError,
+    Runtime,
+)
 from btlog.executor.blackboard import UNSET, Blackboard
 from btlog.executor.clock import SimClock, WallClock
 from btlog.executor.controls import CONTROLS
 from btlog.executor.decorators import DECORATORS
-from btlog.executor.ports import parse_literal
 from btlog.status import FAILURE, IDLE, RUNNING, SUCCESS, Status
 from btlog.tree.model import SUBTREE, Node, Tree, blackboard_key
+from btlog.tree.ports import parse_literal
 from btlog.tree.registry import Registry
 
 BUILTIN_BEHAVIORS: dict[str, type[Behavior]] = {**CONTROLS, **DECORATORS, **ACTIONS}
-
-#: Builds the behaviour of a leaf type that has no implementation (scripted leaves).
-LeafFactory = Callable[[Node, "Runtime", Blackboard], Behavior]
-
-
-class Runtime:
-    """What every behaviour of one executor shares: the clock, the event feed, the tick."""
-
-    __slots__ = ("clock", "emit_status", "tick", "wake_up")
-
-    def __init__(self, clock: SimClock | WallClock) -> None:
-        self.clock = clock
-        self.tick = 0
-        self.wake_up = False
-        self.emit_status: Callable[[int, Status, Status], None] | None = None
 
 
 class Executor:
@@ -273,9 +264,3 @@ class Executor:
         for subscriber in self.subscribers:
             subscriber.on_mutation(mutation)
         return mutation
-
-
-def attach_all(executor: Executor, subscribers: Iterable[Subscriber]) -> None:
-    """Subscribe several subscribers at once."""
-    for subscriber in subscribers:
-        executor.subscribe(subscriber)

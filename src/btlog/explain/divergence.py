@@ -8,7 +8,7 @@ to drive straight through — the useful explanation is *where* they differ. A b
 tree makes this cheap: its subgoals cut a long behaviour into short, comparable pieces.
 For each subgoal we take the sequence of actions executed under it in both behaviours
 and compare the two sequences with the O(NP) algorithm of Wu, Manber, Myers and Miller
-(``btlog.explain.sequence_diff``): the edit distance counts the actions that would have
+(``btlog.algorithms.sequence_diff``): the edit distance counts the actions that would have
 to be removed or added to turn one into the other, the longest common subsequence (LCS)
 is what both agree on, and everything outside the LCS is a divergent action. As in the
 paper's Fig. 14, each divergent action is shown with its immediate parent, so that the
@@ -34,15 +34,13 @@ Subgoals are grouped by description too, in order of first appearance.
 
 from __future__ import annotations
 
-import os
 from collections.abc import Iterable, Sequence
 from dataclasses import dataclass, replace
 
-from btlog.events import EventLog, StatusChange
+from btlog.algorithms.sequence_diff import Comparison, compare
+from btlog.events import StatusChange
 from btlog.explain.hierarchy import subgoal_node
-from btlog.explain.sequence_diff import Comparison, compare
-from btlog.render.terminal import safe
-from btlog.replay.state import StateProjection
+from btlog.state import StateProjection
 from btlog.status import FAILURE, IDLE, SKIPPED, SUCCESS
 from btlog.tree.model import Node, Tree
 
@@ -53,23 +51,10 @@ __all__ = [
     "Row",
     "SubgoalDivergence",
     "actions_from_events",
-    "actions_of",
     "compare_subgoal",
-    "diff_paths",
     "diverge",
-    "executed_actions",
-    "is_recording",
-    "label",
-    "nominal_actions",
-    "render",
-    "render_lines",
-    "subgoal_header",
     "to_json",
 ]
-
-#: Tick limit of a nominal run (a tree that never completes is cut off here).
-NOMINAL_MAX_TICKS = 1000
-_MCAP_MAGIC = b"\x89MCAP"
 
 
 @dataclass(frozen=True)
@@ -150,55 +135,6 @@ def actions_from_events(tree: Tree, events: Iterable) -> list[ExecutedAction]:
     return actions
 
 
-def executed_actions(recording) -> list[ExecutedAction]:
-    """The executed actions of a recording (a ``Recording`` or the path of one)."""
-    if isinstance(recording, str | os.PathLike):
-        from btlog.record.reader import open_recording
-
-        recording = open_recording(recording)
-    return actions_from_events(recording.tree, recording.events)
-
-
-def nominal_actions(tree_path: str | os.PathLike) -> list[ExecutedAction]:
-    """The nominal sequence of a tree: its actions when every leaf succeeds at once.
-
-    The tree runs in memory (simulated clock, scripted leaves, no file) until the root
-    completes or ``NOMINAL_MAX_TICKS`` ticks have passed.
-    """
-    from btlog.domains.outcomes import Outcomes, scripted_leaf_factory
-    from btlog.executor.clock import SimClock
-    from btlog.executor.engine import Executor
-    from btlog.tree.loader import load_tree
-
-    tree = load_tree(os.fspath(tree_path))
-    outcomes = Outcomes.from_mapping(
-        {"default": {"status": "SUCCESS", "duration": 0}}, "nominal outcomes"
-    )
-    executor = Executor(tree, clock=SimClock(), leaf_factory=scripted_leaf_factory(tree, outcomes))
-    log = EventLog()
-    executor.subscribe(log)
-    try:
-        executor.run(NOMINAL_MAX_TICKS)
-    finally:
-        executor.close()
-    return actions_from_events(tree, log.events)
-
-
-def is_recording(path: str | os.PathLike) -> bool:
-    """True when ``path`` starts like an MCAP file (otherwise it is taken as a tree)."""
-    try:
-        with open(path, "rb") as file:
-            return file.read(len(_MCAP_MAGIC)) == _MCAP_MAGIC
-    except OSError:
-        return True  # let the recording reader report the missing/unreadable file
-
-
-def actions_of(path: str | os.PathLike) -> list[ExecutedAction]:
-    """The behaviour stored at ``path``: a recording's executed actions, or a tree XML's
-    nominal sequence."""
-    return executed_actions(path) if is_recording(path) else nominal_actions(path)
-
-
 # -- the comparison ------------------------------------------------------------------------
 @dataclass(frozen=True)
 class Row:
@@ -233,13 +169,6 @@ class Move:
     action: str
     direction: str
     past: tuple[str, ...]
-
-    def text(self) -> str:
-        """E.g. ``"scan scene" moved later, past "attach gear"``."""
-        text = f'"{safe(self.action)}" moved {self.direction}'
-        if self.past:
-            text += ", past " + ", ".join(f'"{safe(p)}"' for p in self.past)
-        return text
 
     def to_json(self) -> dict:
         """JSON-ready form."""
@@ -416,7 +345,6 @@ def diverge(
     return Divergence(a_label, b_label, subgoals)
 
 
-# -- output --------------------------------------------------------------------------------
 def to_json(divergence: Divergence) -> dict:
     """The divergence as a JSON-ready dict (``btlog diff --json``)."""
     return {
@@ -426,78 +354,3 @@ def to_json(divergence: Divergence) -> dict:
         "identical": divergence.identical,
         "subgoals": [s.to_json() for s in divergence.subgoals],
     }
-
-
-def _cell(action: ExecutedAction | None, divergent: bool) -> str:
-    if action is None:
-        return ""
-    text = safe(action.description)
-    if divergent and action.parent:
-        text += f"  (in {safe(action.parent)})"
-    return text
-
-
-def subgoal_header(found: SubgoalDivergence) -> str:
-    """One line: the subgoal with its edit distance and LCS length."""
-    line = (
-        f'subgoal "{safe(found.subgoal)}": edit distance {found.edit_distance}, '
-        f"LCS length {len(found.lcs)} ({len(found.a_actions)} vs "
-        f"{len(found.b_actions)} actions)"
-    )
-    if found.moves:
-        line += "; " + "; ".join(move.text() for move in found.moves)
-    return line
-
-
-def render_lines(divergence: Divergence, only_divergent: bool = False) -> list[tuple[str, str]]:
-    """The side-by-side report as ``(text, kind)`` lines; kind is "title", "header",
-    "row", "divergent", "blank" or "summary" (for styling). Divergent rows start with
-    ``!``; the missing side is blank. ``only_divergent`` leaves out the rows of subgoals
-    that agree."""
-    cells = [(_cell(r.a, r.divergent), r) for s in divergence.subgoals for r in s.rows]
-    width = max([len(c) for c, _ in cells] + [len(safe(divergence.a_label)) + 3, 20])
-    lines = [
-        (f"A: {safe(divergence.a_label)}", "title"),
-        (f"B: {safe(divergence.b_label)}", "title"),
-    ]
-    for found in divergence.subgoals:
-        lines.append(("", "blank"))
-        lines.append((subgoal_header(found), "header"))
-        if only_divergent and not found.diverges:
-            continue
-        lines.append((f"    {'A':<{width}}   B", "header"))
-        for row in found.rows:
-            mark = "! " if row.divergent else "  "
-            left, right = _cell(row.a, row.divergent), _cell(row.b, row.divergent)
-            text = f"  {mark}{left:<{width}}   {right}".rstrip()
-            lines.append((text, "divergent" if row.divergent else "row"))
-    lines.append(("", "blank"))
-    lines.append((_summary(divergence), "summary"))
-    return lines
-
-
-def _summary(divergence: Divergence) -> str:
-    count = len(divergence.subgoals)
-    if divergence.identical:
-        return f"no divergence in {count} subgoal{'s' if count != 1 else ''}"
-    diverging = len(divergence.divergent_subgoals)
-    return (
-        f"total edit distance {divergence.edit_distance}: {diverging} of {count} "
-        f"subgoal{'s' if count != 1 else ''} diverge"
-    )
-
-
-def render(divergence: Divergence, only_divergent: bool = False) -> str:
-    """The side-by-side report as plain text (see ``render_lines``)."""
-    return "\n".join(text for text, _ in render_lines(divergence, only_divergent))
-
-
-def label(path: str | os.PathLike) -> str:
-    """How a behaviour's source is named in reports."""
-    name = os.fspath(path)
-    return name if is_recording(path) else f"{name} (nominal sequence of the tree)"
-
-
-def diff_paths(a: str | os.PathLike, b: str | os.PathLike) -> Divergence:
-    """Compare the behaviours stored at two paths (recordings or tree XML files)."""
-    return diverge(actions_of(a), actions_of(b), label(a), label(b))

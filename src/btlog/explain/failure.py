@@ -17,7 +17,7 @@ blamed for a later one.
 
 from __future__ import annotations
 
-from btlog.replay.state import RETRY_TYPE, State
+from btlog.state import RETRY_TYPE, State
 from btlog.tree.model import SUBTREE, Node
 
 FALLBACK_TYPES = ("Fallback", "ReactiveFallback")

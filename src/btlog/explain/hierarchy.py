@@ -9,7 +9,7 @@ returns the sentence of the paper's templates; ``d(n)`` is ``Node.description``.
 
 from __future__ import annotations
 
-from btlog.replay.state import State
+from btlog.state import State
 from btlog.status import IDLE, RUNNING
 from btlog.tree.model import DECORATOR, SUBTREE, Node, Tree
 

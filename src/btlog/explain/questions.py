@@ -18,7 +18,7 @@ from dataclasses import dataclass, field
 from btlog.explain.failure import what_went_wrong
 from btlog.explain.hierarchy import current_nodes, doing, goal, how, subgoal, subgoal_node, why
 from btlog.explain.insertion import InsertionPlan, plan_insertion
-from btlog.replay.state import State
+from btlog.state import State
 from btlog.tree.model import Node, Tree
 
 QUESTIONS = {

@@ -13,7 +13,7 @@ import json
 from collections.abc import Iterable
 
 from btlog.explain.questions import Answer
-from btlog.replay.state import State
+from btlog.state import State
 from btlog.tree.model import Node, Tree
 
 _COLOURS = {

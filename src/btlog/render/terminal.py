@@ -16,7 +16,7 @@ from typing import Any
 from rich.console import Console
 from rich.text import Text
 
-from btlog.replay.state import State
+from btlog.state import State
 from btlog.status import IDLE, Status
 from btlog.tree.model import Node, Tree
 

@@ -68,7 +68,7 @@ from btlog.replay.moments import (
     parse_started_at,
     resolve_moment,
 )
-from btlog.replay.state import State, StateProjection
+from btlog.state import State, StateProjection
 from btlog.status import Status
 from btlog.tree.model import Tree
 

@@ -64,7 +64,7 @@ import btlog
 from btlog.events import BlackboardWrite, TreeMutation
 from btlog.record import format as fmt
 from btlog.record.reader import RecordingError, decode_metadata, open_mcap, read_metadata
-from btlog.replay.state import State, StateProjection
+from btlog.state import State, StateProjection
 from btlog.status import Status
 from btlog.tree.model import Tree
 

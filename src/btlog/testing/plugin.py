@@ -88,8 +88,8 @@ def _updated(config: pytest.Config, path: Path) -> None:
 
 def _readable(error: BaseException) -> str | None:
     """The report of a btlog failure or bad input (one line), else None."""
+    from btlog.checks.expectations import ExpectationError, RerunError
     from btlog.record.reader import RecordingError
-    from btlog.testing.expectations import ExpectationError, RerunError
 
     if isinstance(error, BtlogCheckFailed):
         return str(error)
@@ -104,7 +104,7 @@ class ExpectFile(pytest.File):
 
     def collect(self):
         """The items of this file; a bad file is a collection error with one line."""
-        from btlog.testing.expectations import ExpectationError, load_expectations
+        from btlog.checks.expectations import ExpectationError, load_expectations
 
         try:
             self.expectations = load_expectations(self.path, partial=_updating(self.config))
@@ -130,7 +130,7 @@ class ExpectFile(pytest.File):
 
     def stored_run(self):
         """The recording opened once for all items of this file."""
-        from btlog.testing.expectations import StoredRun
+        from btlog.checks.expectations import StoredRun
 
         if self._run is None:
             self._run = StoredRun(self.run_path)
@@ -149,7 +149,7 @@ class ExpectFile(pytest.File):
 
     def teardown(self) -> None:
         """Close the run; write the file if ``--btlog-update`` changed it."""
-        from btlog.testing.expectations import write_expectations
+        from btlog.checks.expectations import write_expectations
 
         if self._run is not None:
             self._run.close()
@@ -185,7 +185,7 @@ class ExpectItem(pytest.Item):
             raise BtlogCheckFailed(result.report())
 
     def _result(self):
-        from btlog.testing import expectations as ex
+        from btlog.checks import expectations as ex
 
         file: ExpectFile = self.parent
         run, expected = file.stored_run(), file.expectations
@@ -196,7 +196,7 @@ class ExpectItem(pytest.Item):
         return ex.check_status(run, expected.statuses[self.index], expected.source)
 
     def _rerun(self) -> None:
-        from btlog.testing.expectations import rerun
+        from btlog.checks.expectations import rerun
 
         report = rerun(self.parent.run_path)
         if not report.ok:
@@ -228,7 +228,7 @@ def btlog_run(request: pytest.FixtureRequest):
     """A factory opening stored runs: ``run = btlog_run("recordings/kitting-1.mcap")``;
     then ``run.answer(at, question)``, ``run.status(at, node)``, ``run.final_status``,
     ``run.state_at(at)``, ``run.actions``. Runs are closed after the test."""
-    from btlog.testing.expectations import StoredRun
+    from btlog.checks.expectations import StoredRun
 
     opened: list[StoredRun] = []
 
@@ -249,7 +249,7 @@ def btlog_expect(request: pytest.FixtureRequest):
     ``expectations`` is a mapping or an expectations file. Fails the test with a
     readable report; with ``--btlog-update`` a file is re-recorded instead.
     Returns the check results."""
-    from btlog.testing import expectations as ex
+    from btlog.checks import expectations as ex
 
     def expect(
         run_path: str | os.PathLike,
@@ -272,7 +272,7 @@ def btlog_expect(request: pytest.FixtureRequest):
 
 
 def _expect(request: pytest.FixtureRequest, path: Path, expectations) -> list:
-    from btlog.testing import expectations as ex
+    from btlog.checks import expectations as ex
 
     if not isinstance(expectations, dict | ex.Expectations):
         expectations = _resolve(request, expectations)

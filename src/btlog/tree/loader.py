@@ -517,7 +517,7 @@ def _allowed_port_name(name: str) -> bool:
 def _check_literal(
     value: str, spec: PortSpec, port: str, type_id: str, file: str, line: int
 ) -> None:
-    from btlog.executor.ports import PortValueError, convert
+    from btlog.tree.ports import PortValueError, convert
 
     try:
         convert(value, spec.type)
@@ -528,7 +528,7 @@ def _check_literal(
 
 
 def _check_script(code: str, attribute: str, file: str, line: int) -> None:
-    from btlog.executor.script import ScriptError, compile_script
+    from btlog.tree.script import ScriptError, compile_script
 
     try:
         compile_script(code)

@@ -40,18 +40,18 @@ from typing import Any
 
 import yaml
 
+from btlog.explain.behaviours import executed_actions
 from btlog.explain.divergence import (
     Divergence,
     ExecutedAction,
     SubgoalDivergence,
     diverge,
-    executed_actions,
-    render,
     to_json,
 )
 from btlog.explain.questions import UnknownQuestion, answer, parse_question
 from btlog.record.reader import Recording, open_recording
-from btlog.replay.state import State
+from btlog.render.divergence import move_text, render
+from btlog.state import State
 from btlog.status import Status
 from btlog.tree.model import Tree
 
@@ -561,7 +561,7 @@ def subgoal_check(found: SubgoalDivergence) -> CheckResult:
     if not found.diverges:
         return CheckResult(True, what, expected, f"the same {len(found.b_actions)} actions")
     parts = [f"edit distance {found.edit_distance}, LCS length {len(found.lcs)}"]
-    parts += [move.text() for move in found.moves]
+    parts += [move_text(move) for move in found.moves]
     moved = set(found.moved)
     only_a = [_action_text(a) for a in found.only_a if a.description not in moved]
     only_b = [_action_text(b) for b in found.only_b if b.description not in moved]

@@ -1,0 +1,1 @@
+"""General algorithms with no knowledge of behavior trees."""

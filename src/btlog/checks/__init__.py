@@ -1,0 +1,1 @@
+"""Checks of recorded runs: expectations files and re-run comparison (CLI and pytest)."""

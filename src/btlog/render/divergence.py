@@ -1,0 +1,82 @@
+"""Text of a divergence report: ``btlog diff``'s side-by-side table, one row per action.
+
+Every recorded string goes through ``safe`` (terminal escapes neutralised). Divergent rows
+start with ``!`` and show the action's immediate parent, as in the paper's Fig. 14.
+"""
+
+from __future__ import annotations
+
+from btlog.explain.divergence import Divergence, ExecutedAction, Move, SubgoalDivergence
+from btlog.render.terminal import safe
+
+
+def move_text(move: Move) -> str:
+    """E.g. ``"scan scene" moved later, past "attach gear"``."""
+    text = f'"{safe(move.action)}" moved {move.direction}'
+    if move.past:
+        text += ", past " + ", ".join(f'"{safe(p)}"' for p in move.past)
+    return text
+
+
+def _cell(action: ExecutedAction | None, divergent: bool) -> str:
+    if action is None:
+        return ""
+    text = safe(action.description)
+    if divergent and action.parent:
+        text += f"  (in {safe(action.parent)})"
+    return text
+
+
+def subgoal_header(found: SubgoalDivergence) -> str:
+    """One line: the subgoal with its edit distance and LCS length."""
+    line = (
+        f'subgoal "{safe(found.subgoal)}": edit distance {found.edit_distance}, '
+        f"LCS length {len(found.lcs)} ({len(found.a_actions)} vs "
+        f"{len(found.b_actions)} actions)"
+    )
+    if found.moves:
+        line += "; " + "; ".join(move_text(move) for move in found.moves)
+    return line
+
+
+def render_lines(divergence: Divergence, only_divergent: bool = False) -> list[tuple[str, str]]:
+    """The side-by-side report as ``(text, kind)`` lines; kind is "title", "header",
+    "row", "divergent", "blank" or "summary" (for styling). Divergent rows start with
+    ``!``; the missing side is blank. ``only_divergent`` leaves out the rows of subgoals
+    that agree."""
+    cells = [(_cell(r.a, r.divergent), r) for s in divergence.subgoals for r in s.rows]
+    width = max([len(c) for c, _ in cells] + [len(safe(divergence.a_label)) + 3, 20])
+    lines = [
+        (f"A: {safe(divergence.a_label)}", "title"),
+        (f"B: {safe(divergence.b_label)}", "title"),
+    ]
+    for found in divergence.subgoals:
+        lines.append(("", "blank"))
+        lines.append((subgoal_header(found), "header"))
+        if only_divergent and not found.diverges:
+            continue
+        lines.append((f"    {'A':<{width}}   B", "header"))
+        for row in found.rows:
+            mark = "! " if row.divergent else "  "
+            left, right = _cell(row.a, row.divergent), _cell(row.b, row.divergent)
+            text = f"  {mark}{left:<{width}}   {right}".rstrip()
+            lines.append((text, "divergent" if row.divergent else "row"))
+    lines.append(("", "blank"))
+    lines.append((_summary(divergence), "summary"))
+    return lines
+
+
+def _summary(divergence: Divergence) -> str:
+    count = len(divergence.subgoals)
+    if divergence.identical:
+        return f"no divergence in {count} subgoal{'s' if count != 1 else ''}"
+    diverging = len(divergence.divergent_subgoals)
+    return (
+        f"total edit distance {divergence.edit_distance}: {diverging} of {count} "
+        f"subgoal{'s' if count != 1 else ''} diverge"
+    )
+
+
+def render(divergence: Divergence, only_divergent: bool = False) -> str:
+    """The side-by-side report as plain text (see ``render_lines``)."""
+    return "\n".join(text for text, _ in render_lines(divergence, only_divergent))
