@@ -45,6 +45,7 @@ from btlog.executor.engine import Executor
 from btlog.record.recorder import Recorder
 from btlog.replay import ingest
 from btlog.replay.database import open_runs
+from btlog.replay.tables import create_schema
 from btlog.status import FAILURE, SUCCESS
 from btlog.tree.loader import load_tree_text
 
@@ -162,7 +163,7 @@ def best(run: Callable[[], object], repeat: int) -> tuple[float, object]:
 def ingest_in_memory(path: Path) -> ingest.IngestReport:
     """The tables only (no snapshots), into an in-memory database."""
     con = duckdb.connect()
-    ingest.create_schema(con)
+    create_schema(con)
     try:
         return ingest.load_tables(con, path)
     finally:
@@ -172,7 +173,7 @@ def ingest_in_memory(path: Path) -> ingest.IngestReport:
 def parquet_read(path: Path, folder: Path, repeat: int) -> tuple[float, int]:
     """(best seconds, rows) for DuckDB loading the same rows from Parquet files."""
     con = duckdb.connect()
-    ingest.create_schema(con)
+    create_schema(con)
     ingest.load_tables(con, path)
     files = []
     for table in ("transitions", "blackboard", "ticks"):

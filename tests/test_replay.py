@@ -34,9 +34,9 @@ from btlog.explain.questions import answer
 from btlog.record import format as fmt
 from btlog.record.recorder import Recorder
 from btlog.record.schemas import schema_text
-from btlog.replay import ingest
 from btlog.replay.database import ReplayError, cache_location, open_runs, user_cache_dir
 from btlog.replay.moments import MomentError, parse_moment
+from btlog.replay.scan import McapScan
 from btlog.status import FAILURE, IDLE, RUNNING, SUCCESS
 from btlog.tree.loader import load_tree
 
@@ -744,7 +744,7 @@ def test_unusual_payloads_are_decoded_by_the_general_path(kitting, tmp_path):
     path, live = kitting
     spaced = tmp_path / "spaced.mcap"
     write_spaced_recording(path, spaced)
-    walked = ingest._McapScan(str(spaced), lambda batch: None).run()
+    walked = McapScan(str(spaced), lambda batch: None).run()
     assert walked.other_events and walked.other_ticks, "the fast path must not apply"
     with open_runs(spaced, cache=False, snapshot_every=11) as database:
         assert_replay_equals_live(database.run(), live)

@@ -15,7 +15,8 @@ from btlog.events import EventLog
 from btlog.executor.clock import SimClock
 from btlog.executor.engine import Executor
 from btlog.explain.divergence import Divergence, ExecutedAction, actions_from_events, diverge
-from btlog.record.reader import MAGIC, Recording, open_recording
+from btlog.record.reader import Recording, open_recording
+from btlog.record.walk import MAGIC
 from btlog.tree.loader import load_tree
 
 #: Tick limit of a nominal run (a tree that never completes is cut off here).

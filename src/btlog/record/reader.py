@@ -1,17 +1,9 @@
 """The reader: a recording back as events, ticks, the tree and the run's metadata.
 
-An MCAP file is a sequence of records (``opcode``, ``length``, body); the messages live
-inside compressed chunks, and a finished file ends with a summary (an index of the
-chunks) and a footer. Two ways to read it follow from that:
-
-- a finished file is read through its index (mcap's ``SeekingReader``);
-- a file cut short (the recorder was killed) has no summary, and mcap's seeking reader
-  then finds nothing. It is read front to back instead, over only its *complete prefix*:
-  a first pass walks the record headers (9 bytes each, no decompression) to the last
-  record whose body is entirely in the file, and mcap's ``StreamReader`` reads up to
-  there. A chunk is whole or not read at all, so what comes back is every message of
-  every chunk that reached the disk — with the recorder's flushing, a gap-free prefix of
-  the run's events — and a warning says where it stopped.
+The file is walked front to back by ``btlog.record.walk`` (the one record walker): a
+file cut short (the recorder was killed) is read up to its last whole record — with the
+recorder's flushing, a gap-free prefix of the run's events — and a damaged chunk is
+skipped; warnings say both.
 
 Bad input (a missing, empty or non-MCAP file, a file that is not a btlog recording, a
 schema version this btlog does not read) raises ``RecordingError`` with one line naming
@@ -21,155 +13,46 @@ the file and the problem.
 from __future__ import annotations
 
 import os
-import struct
 from collections.abc import Iterator
 from dataclasses import dataclass, field
 from operator import attrgetter
 from pathlib import Path
-from typing import IO, Any
+from typing import Any
 
 import orjson
-from mcap.exceptions import EndOfFile
 from mcap.opcode import Opcode
-from mcap.reader import SeekingReader
 from mcap.records import Attachment, Channel, Message, Metadata
-from mcap.stream_reader import StreamReader
 
 import btlog
 from btlog.events import BlackboardWrite, StatusChange, TickRecord, TreeMutation
 from btlog.record import format as fmt
+from btlog.record.walk import (
+    RecordingError,
+    Walk,
+    mapped,
+    open_mcap,
+    parse,
+    records,
+    top_records,
+)
 from btlog.tree.model import Tree
 
-MAGIC = b"\x89MCAP0\r\n"
-_RECORD_HEAD = struct.Struct("<BQ")
-_FOOTER_SIZE = 9 + 8 + 8 + 4
-#: What reading a damaged (not merely cut) record may raise: mcap's own errors, but also
-#: whatever its parsing and the decompressors hit on bad bytes (struct.error, ZstdError,
-#: OverflowError, …). Only mcap's reading is guarded by it, never btlog's decoding.
-DAMAGE_ERRORS = (Exception,)
+
+def raw_records(path: str | os.PathLike, walk: Walk) -> Iterator[Any]:
+    """Every record of the file as ``mcap`` record objects, in file order, chunks opened
+    (see ``btlog.record.walk``: a cut file stops at its cut, damaged chunks are skipped,
+    both noted in ``walk``). Used by the reader and by ``recover``."""
+    with mapped(path) as (data, size):
+        for opcode, buffer, body, end in records(data, size, walk):
+            record = parse(opcode, buffer, body, end)
+            if record is not None:
+                yield record
 
 
-class RecordingError(ValueError):
-    """A file that cannot be read as a btlog recording; the message names file and problem."""
-
-
-# -- the records of a file ------------------------------------------------------------------
-class _Prefix:
-    """A read-only view of the first ``limit`` bytes of a binary file."""
-
-    def __init__(self, file: IO[bytes], limit: int) -> None:
-        self._file = file
-        self._left = limit
-
-    def read(self, size: int = -1) -> bytes:
-        size = self._left if size is None or size < 0 else min(size, self._left)
-        data = self._file.read(size)
-        self._left -= len(data)
-        return data
-
-
-def _complete_prefix(file: IO[bytes], size: int) -> tuple[int, bool]:
-    """(bytes of whole records from the start, whether the file ends with footer + magic)."""
-    position = len(MAGIC)
-    while True:
-        file.seek(position)
-        head = file.read(_RECORD_HEAD.size)
-        if len(head) < _RECORD_HEAD.size:
-            return position, False
-        opcode, length = _RECORD_HEAD.unpack(head)
-        end = position + _RECORD_HEAD.size + length
-        if end > size:
-            return position, False
-        if opcode == Opcode.FOOTER:
-            file.seek(end)
-            if file.read(len(MAGIC)) == MAGIC:
-                return end + len(MAGIC), True
-            return end, False
-        position = end
-
-
-@dataclass
-class Scan:
-    """What reading a file found besides its records: whether it was cut, and warnings."""
-
-    path: str
-    truncated: bool = False
-    warnings: list[str] = field(default_factory=list)
-
-
-def open_mcap(path: str | os.PathLike) -> tuple[IO[bytes], int]:
-    """Open ``path`` and check it starts as an MCAP file; RecordingError otherwise.
-    Returns the open file (the caller closes it) and its size."""
-    name = os.fspath(path)
-    try:
-        file = open(name, "rb")  # noqa: SIM115
-    except FileNotFoundError:
-        raise RecordingError(f"{name}: no such file") from None
-    except IsADirectoryError:
-        raise RecordingError(f"{name}: is a directory, not a recording") from None
-    except OSError as error:
-        raise RecordingError(f"{name}: cannot open: {error.strerror}") from None
-    size = os.fstat(file.fileno()).st_size
-    magic = file.read(len(MAGIC))
-    if size == 0 or magic != MAGIC:
-        file.close()
-        problem = "empty file" if size == 0 else "not an MCAP file (bad magic)"
-        raise RecordingError(f"{name}: {problem}")
-    return file, size
-
-
-def _indexed_reader(file: IO[bytes], size: int) -> SeekingReader | None:
-    """A seeking reader when the file ends with a valid footer and summary, else None."""
-    if size < len(MAGIC) * 2 + _FOOTER_SIZE:
-        return None
-    file.seek(size - len(MAGIC) - _FOOTER_SIZE)
-    tail = file.read(_FOOTER_SIZE + len(MAGIC))
-    if tail[0] != Opcode.FOOTER or tail[-len(MAGIC) :] != MAGIC:
-        return None
-    try:
-        file.seek(0)
-        reader = SeekingReader(file, validate_crcs=True)
-        summary = reader.get_summary()
-    except DAMAGE_ERRORS:
-        return None
-    if summary is None or not summary.chunk_indexes:
-        return None
-    return reader
-
-
-def _indexed_records(reader: SeekingReader) -> Iterator[Any]:
-    yield from reader.iter_metadata()
-    yield from reader.iter_attachments()
-    for _schema, channel, message in reader.iter_messages(log_time_order=False):
-        yield channel.topic, message
-
-
-def raw_records(file: IO[bytes], size: int, scan: Scan) -> Iterator[Any]:
-    """Every mcap record of the file's complete prefix, in file order (chunks opened).
-
-    Stops cleanly at the cut of a truncated file and at a damaged record, noting it in
-    ``scan``. Used by the streaming read and by ``recover``.
-    """
-    limit, finished = _complete_prefix(file, size)
-    scan.truncated = not finished
-    file.seek(0)
-    try:
-        yield from StreamReader(_Prefix(file, limit), validate_crcs=True).records
-    except EndOfFile:
-        if finished:
-            scan.truncated = True
-            scan.warnings.append(f"{scan.path}: unexpected end of the file")
-    except DAMAGE_ERRORS as error:
-        scan.truncated = True
-        scan.warnings.append(
-            f"{scan.path}: damaged record, reading stopped there: {type(error).__name__}: {error}"
-        )
-
-
-def _streamed_records(file: IO[bytes], size: int, scan: Scan) -> Iterator[Any]:
+def _records(path: str | os.PathLike, walk: Walk) -> Iterator[Any]:
     """Metadata, attachments and messages as ``(topic, Message)``, front to back."""
     topics: dict[int, str] = {}
-    for record in raw_records(file, size, scan):
+    for record in raw_records(path, walk):
         if isinstance(record, Message):
             topic = topics.get(record.channel_id)
             if topic is not None:
@@ -178,24 +61,6 @@ def _streamed_records(file: IO[bytes], size: int, scan: Scan) -> Iterator[Any]:
             topics[record.id] = record.topic
         elif isinstance(record, Metadata | Attachment):
             yield record
-
-
-def _records(path: str | os.PathLike, scan: Scan) -> Iterator[Any]:
-    """Metadata, attachments and ``(topic, Message)`` of ``path``, by index if it has one."""
-    file, size = open_mcap(path)
-    with file:
-        reader = _indexed_reader(file, size)
-        if reader is None:
-            yield from _streamed_records(file, size, scan)
-            return
-        try:
-            yield from _indexed_records(reader)
-        except DAMAGE_ERRORS as error:
-            scan.truncated = True
-            scan.warnings.append(
-                f"{scan.path}: damaged record, reading stopped there: "
-                f"{type(error).__name__}: {error}"
-            )
 
 
 # -- public reading API ------------------------------------------------------------------
@@ -210,8 +75,8 @@ class MessageStream:
         self.path = os.fspath(path)
         file, _size = open_mcap(self.path)  # bad input fails here, not at iteration
         file.close()
-        self._scan = Scan(self.path)
-        self._records = _records(self.path, self._scan)
+        self._walk = Walk(self.path)
+        self._records = _records(self.path, self._walk)
 
     def __iter__(self) -> Iterator[tuple[str, int, bytes]]:
         for record in self._records:
@@ -222,12 +87,12 @@ class MessageStream:
     @property
     def truncated(self) -> bool:
         """True when the file was cut short (known once iterated)."""
-        return self._scan.truncated
+        return self._walk.truncated
 
     @property
     def warnings(self) -> list[str]:
         """What was noticed while reading (known once iterated)."""
-        return self._scan.warnings
+        return self._walk.warnings
 
 
 def iter_messages(path: str | os.PathLike) -> MessageStream:
@@ -260,34 +125,17 @@ def decode_metadata(path: str, record: dict[str, str]) -> dict[str, Any]:
 def read_metadata(path: str | os.PathLike) -> dict[str, Any]:
     """The run's ``btlog.run`` metadata (JSON values decoded), without reading events."""
     name = os.fspath(path)
-    file, size = open_mcap(name)
-    with file:
-        record = _find_metadata(file, size)
+    record = None
+    with mapped(name) as (data, size):
+        for opcode, body, end in top_records(data, size, Walk(name)):
+            if opcode == Opcode.METADATA:
+                found = parse(opcode, data, body, end)
+                if found.name == fmt.METADATA_NAME:
+                    record = found
+                    break
     if record is None:
         raise RecordingError(f"{name}: not a btlog recording (no {fmt.METADATA_NAME} metadata)")
     return decode_metadata(name, record.metadata)
-
-
-def _find_metadata(file: IO[bytes], size: int) -> Metadata | None:
-    """The ``btlog.run`` record, through the index when there is one."""
-    reader = _indexed_reader(file, size)
-    records = reader.iter_metadata() if reader is not None else _metadata_prefix(file, size)
-    try:
-        return next((r for r in records if r.name == fmt.METADATA_NAME), None)
-    except DAMAGE_ERRORS:
-        return None
-
-
-def _metadata_prefix(file: IO[bytes], size: int) -> Iterator[Metadata]:
-    """The metadata records of the complete prefix, chunks left compressed."""
-    limit, _finished = _complete_prefix(file, size)
-    file.seek(0)
-    try:
-        for record in StreamReader(_Prefix(file, limit), emit_chunks=True).records:
-            if isinstance(record, Metadata):
-                yield record
-    except EndOfFile:  # the end of the complete prefix
-        return
 
 
 @dataclass
@@ -356,10 +204,10 @@ def open_recording(path: str | os.PathLike) -> Recording:
     """Read the recording at ``path``; a truncated file is read up to its cut, with a
     warning. Raises ``RecordingError`` for anything that is not a readable recording."""
     name = os.fspath(path)
-    scan = Scan(name)
+    walk = Walk(name)
     contents = _Contents()
     try:
-        for record in _records(name, scan):
+        for record in _records(name, walk):
             contents.add(record)
     except (
         orjson.JSONDecodeError,
@@ -374,39 +222,43 @@ def open_recording(path: str | os.PathLike) -> Recording:
         raise RecordingError(
             f"{name}: a message does not follow the btlog format: {type(error).__name__}: {error}"
         ) from None
-    return _assemble(name, contents, scan)
+    return _assemble(name, contents, walk)
 
 
-def _assemble(name: str, contents: _Contents, scan: Scan) -> Recording:
+def _assemble(name: str, contents: _Contents, walk: Walk) -> Recording:
     if contents.tree is None:
-        cut = " (the file is cut before it)" if scan.truncated else ""
+        cut = " (the file is cut before it)" if walk.truncated else ""
         raise RecordingError(f"{name}: not a btlog recording: no {fmt.TREE_TOPIC} message{cut}")
     if contents.metadata is None:
         raise RecordingError(f"{name}: not a btlog recording: no {fmt.METADATA_NAME} metadata")
     metadata = decode_metadata(name, contents.metadata)
     events = contents.events
-    warnings = scan.warnings
+    warnings = walk.warnings
     if not _gap_free(events):  # the recorder writes in seq order; anything else is sorted
         events.sort(key=attrgetter("seq"))
         if not _gap_free(events):
             warnings.append(f"{name}: the events' seqs are not 0, 1, 2, … without gaps")
-    if scan.truncated:
+    if walk.truncated:
         last = f"up to seq {events[-1].seq}" if events else "(none)"
         warnings.insert(0, f"{name}: truncated recording; read {len(events)} events {last}")
     return Recording(
         Path(name),
         metadata,
-        _tree(name, contents.tree),
+        tree_of(name, contents.tree),
         events,
         contents.ticks,
         contents.answers,
         contents.attachments,
-        scan.truncated,
+        walk.truncated,
         warnings,
     )
 
 
-def _tree(name: str, message: dict) -> Tree:
+def tree_of(name: str, message: dict | None) -> Tree:
+    """The tree of a recording's ``/btlog/tree`` message; RecordingError naming ``name``
+    when there is none or it is not a tree."""
+    if message is None:
+        raise RecordingError(f"{name}: not a btlog recording: no {fmt.TREE_TOPIC} message")
     try:
         return Tree.from_description(message)
     except (KeyError, TypeError, StopIteration) as error:

@@ -21,8 +21,9 @@ from mcap.records import Attachment, Channel, Header, Message, Metadata, Schema
 from mcap.writer import Writer
 
 from btlog.record import format as fmt
-from btlog.record.reader import RecordingError, Scan, open_mcap, raw_records
+from btlog.record.reader import RecordingError, raw_records
 from btlog.record.recorder import DEFAULT_COMPRESSION
+from btlog.record.walk import Walk
 
 
 @dataclass
@@ -122,17 +123,15 @@ def recover(broken: str | os.PathLike, fixed: str | os.PathLike) -> RecoveryRepo
     ``broken`` is not an MCAP file at all.
     """
     source, target = Path(broken), Path(fixed)
-    scan = Scan(str(source))
-    file, size = open_mcap(source)
-    with file:
-        records = raw_records(file, size, scan)
-        header = next(records, None)
-        if not isinstance(header, Header):
-            raise RecordingError(f"{source}: not an MCAP file (no header record)")
-        report = RecoveryReport(source, target, truncated=False)
-        _rewrite(records, target, header.library, report)
-    report.truncated = scan.truncated
-    report.warnings.extend(scan.warnings)
+    walk = Walk(str(source))
+    records = raw_records(source, walk)
+    header = next(records, None)
+    if not isinstance(header, Header):
+        raise RecordingError(f"{source}: not an MCAP file (no header record)")
+    report = RecoveryReport(source, target, truncated=False)
+    _rewrite(records, target, header.library, report)
+    report.truncated = walk.truncated
+    report.warnings.extend(walk.warnings)
     return report
 
 

@@ -52,7 +52,6 @@ import orjson
 import btlog
 from btlog.record.reader import RecordingError
 from btlog.replay import ingest as ingestion
-from btlog.replay.ingest import first_row
 from btlog.replay.moments import (
     BEFORE_END,
     END,
@@ -68,8 +67,10 @@ from btlog.replay.moments import (
     parse_started_at,
     resolve_moment,
 )
+from btlog.replay.snapshots import DEFAULT_SNAPSHOT_EVERY, EventBatch, load_mutations
+from btlog.replay.tables import INGEST_VERSION, PUBLIC_TABLES, create_schema, first_row
 from btlog.state import State, StateProjection
-from btlog.status import Status
+from btlog.status import STATUS_NAMES, Status
 from btlog.tree.model import Tree
 
 CACHE_SUFFIX = ".duckdb"
@@ -124,7 +125,7 @@ class TimelineEntry(NamedTuple):
 def open_runs(
     *paths: str | os.PathLike,
     cache: bool = True,
-    snapshot_every: int = ingestion.DEFAULT_SNAPSHOT_EVERY,
+    snapshot_every: int = DEFAULT_SNAPSHOT_EVERY,
     cache_dir: str | os.PathLike | None = None,
 ) -> RunDatabase:
     """Open one or many recordings in one database (see the module docstring).
@@ -175,7 +176,7 @@ def _cache_key(path: str, snapshot_every: int) -> tuple:
         stat.st_size,
         stat.st_mtime_ns,
         btlog.SCHEMA_VERSION,
-        ingestion.INGEST_VERSION,
+        INGEST_VERSION,
         snapshot_every,
     )
 
@@ -192,7 +193,7 @@ def _build_cache(path: str, cache: Path, snapshot_every: int) -> ingestion.Inges
     con = duckdb.connect()
     try:
         con.execute("ATTACH $path AS cache_file", {"path": str(temporary)})
-        ingestion.create_schema(con)
+        create_schema(con)
         report = ingestion.load_tables(con, path, snapshot_every=snapshot_every)
         with ThreadPoolExecutor(max_workers=1, thread_name_prefix="btlog-cache") as pool:
             copying = pool.submit(_copy_tables, con.cursor())
@@ -224,7 +225,7 @@ def _copy_tables(cursor: duckdb.DuckDBPyConnection) -> None:
 class RunDatabase:
     """Several runs in one DuckDB connection (build it with ``open_runs``)."""
 
-    def __init__(self, snapshot_every: int = ingestion.DEFAULT_SNAPSHOT_EVERY) -> None:
+    def __init__(self, snapshot_every: int = DEFAULT_SNAPSHOT_EVERY) -> None:
         self.con = duckdb.connect()
         self.snapshot_every = snapshot_every
         self.ingested: list[ingestion.IngestReport] = []
@@ -301,7 +302,7 @@ class RunDatabase:
         self.con.execute(f"ATTACH ':memory:' AS {catalog}")
         self.con.execute(f"USE {catalog}")
         try:
-            ingestion.create_schema(self.con)
+            create_schema(self.con)
             self.ingested.append(
                 ingestion.ingest(self.con, path, snapshot_every=self.snapshot_every)
             )
@@ -325,7 +326,7 @@ class RunDatabase:
 
     def _create_views(self) -> None:
         """The public tables as views over every run's catalog (run ids made unique)."""
-        for table in ingestion.PUBLIC_TABLES:
+        for table in PUBLIC_TABLES:
             parts = [
                 f"SELECT * REPLACE ('{run.run_id}' AS run_id) FROM {run.catalog}.{table}"
                 for run in self._runs
@@ -409,7 +410,7 @@ class Run:
         self._stored_id, events, last_tick, truncated, warnings, every, tree = row
         self.snapshot_every = every
         self.tree = Tree.from_description(orjson.loads(tree))
-        self.mutations = ingestion.load_mutations(self.con, self._stored_id, self._prefix)
+        self.mutations = load_mutations(self.con, self._stored_id, self._prefix)
         self.info = self._info(events, last_tick, truncated, orjson.loads(warnings))
         rows = self.con.execute(
             f"SELECT first_t_ns, first_tick FROM {catalog}._snapshots WHERE run_id = $run_id "
@@ -421,7 +422,7 @@ class Run:
             "t_ns": [_PAST if r[0] is None else r[0] for r in rows],
             "tick": [_PAST if r[1] is None else r[1] for r in rows],
         }
-        self._blocks: OrderedDict[int, tuple[dict, ingestion.EventBatch]] = OrderedDict()
+        self._blocks: OrderedDict[int, tuple[dict, EventBatch]] = OrderedDict()
         started_ns, zone = parse_started_at(self.info.metadata.get("started_at"))
         self.extent = RunExtent(
             events,
@@ -461,7 +462,7 @@ class Run:
         return f"<Run {self.run_id} {self.info.file} {self.info.events} events>"
 
     # -- snapshot blocks -----------------------------------------------------------------
-    def _block(self, index: int) -> tuple[dict, ingestion.EventBatch]:
+    def _block(self, index: int) -> tuple[dict, EventBatch]:
         """Snapshot ``index``: the state before event ``index * snapshot_every`` (as JSON)
         and the events up to the next snapshot."""
         cached = self._blocks.get(index)
@@ -476,7 +477,7 @@ class Run:
             {"run_id": self._stored_id, "seq": seq},
         )
         mutations = [m for m in self.mutations if seq <= m.seq < seq + self.snapshot_every]
-        block = (orjson.loads(state), ingestion.EventBatch.from_block(events, mutations))
+        block = (orjson.loads(state), EventBatch.from_block(events, mutations))
         self._blocks[index] = block
         if len(self._blocks) > self.CACHED_BLOCKS:
             self._blocks.popitem(last=False)
@@ -653,10 +654,8 @@ def _status_name(status: str | Status) -> str:
     if isinstance(status, Status):
         return status.name
     name = str(status).strip().upper()
-    if name not in ingestion.STATUS_VALUES:
-        raise ReplayError(
-            f"unknown status {status!r} (expected one of {', '.join(ingestion.STATUS_VALUES)})"
-        )
+    if name not in STATUS_NAMES:
+        raise ReplayError(f"unknown status {status!r} (expected one of {', '.join(STATUS_NAMES)})")
     return name
 
 

@@ -1,0 +1,289 @@
+"""Bulk loading: row batches into the DuckDB tables, in worker threads.
+
+``McapScan`` (``btlog.replay.scan``) hands over ``RowBatch``es while it walks the file;
+``Loader`` loads each in one of two lanes (status rows; write and tick rows), in file
+order. Status and tick rows become CSV with one ``bytes.translate`` (``[`` turned into
+a newline, ``"`` and ``]`` deleted: ``[1,2,"IDLE","RUNNING"],`` → ``⏎1,2,IDLE,RUNNING,``)
+and go through Arrow's multithreaded CSV reader; each message's write rows become one
+line of newline-delimited JSON for DuckDB's ``read_json``. Both parsers release the
+GIL, so walking, parsing CSV and parsing JSON overlap. Rows these parsers refuse (an
+unknown status, a row of another shape) are decoded with orjson and loaded through
+Arrow instead: slower, never wrong.
+"""
+
+from __future__ import annotations
+
+from collections import deque
+from collections.abc import Callable
+from concurrent.futures import Future, ThreadPoolExecutor
+from pathlib import Path
+from typing import Any
+
+import duckdb
+import orjson
+import pyarrow as pa
+import pyarrow.compute as pa_compute
+import pyarrow.csv as pa_csv
+
+from btlog.record.walk import RecordingError
+from btlog.replay.scan import Collected, RowBatch
+from btlog.replay.tables import identifier, insert_arrow, one_row
+from btlog.status import STATUS_NAMES
+
+#: ``[`` (a row starts) becomes a newline; ``"`` and ``]`` are deleted.
+_ROWS_TO_CSV = bytes.maketrans(b"[", b"\n")
+
+
+class _Lane:
+    """One worker thread with its own DuckDB cursor, running jobs in submission order."""
+
+    def __init__(self, con: duckdb.DuckDBPyConnection, name: str) -> None:
+        self.cursor = con.cursor()
+        catalog, schema = one_row(con, "SELECT current_database(), current_schema()")
+        self.cursor.execute(f"USE {identifier(catalog)}.{identifier(schema)}")
+        self.pool = ThreadPoolExecutor(max_workers=1, thread_name_prefix=f"btlog-{name}")
+        self.pending: deque[Future] = deque()
+        self.closed = False
+
+    def submit(self, job: Callable[..., None], *args: Any) -> None:
+        """Queue ``job(cursor, *args)``, waiting while two are queued (bounds memory)."""
+        while len(self.pending) >= 2:
+            self.pending.popleft().result()
+        self.pending.append(self.pool.submit(job, self.cursor, *args))
+
+    def finish(self) -> None:
+        """Wait for every queued job; re-raises a job's error."""
+        while self.pending:
+            self.pending.popleft().result()
+
+    def close(self) -> None:
+        """Cancel what has not started, wait for what has, release the cursor (once)."""
+        for future in self.pending:
+            future.cancel()
+        self.pending.clear()
+        self.pool.shutdown(wait=True)
+        if not self.closed:
+            self.closed = True
+            self.cursor.close()
+
+
+class Loader:
+    """Loads ``RowBatch``es into DuckDB while the walk goes on, in two lanes (status rows;
+    write and tick rows), each in file order. DuckDB and Arrow release the GIL while they
+    parse, so walking, parsing CSV and parsing JSON overlap."""
+
+    def __init__(self, con: duckdb.DuckDBPyConnection, run_id: str, folder: Path) -> None:
+        self.run_id = run_id
+        self.folder = folder
+        self.rows = _Lane(con, "rows")
+        self.writes = _Lane(con, "writes")
+        self.batches = 0
+
+    def submit(self, batch: RowBatch) -> None:
+        """Queue a batch's rows."""
+        self.batches += 1
+        run_id = self.run_id
+        if batch.status:
+            self.rows.submit(_load_csv_rows, run_id, "transitions", batch.status, _STATUS_CSV)
+        if batch.writes:
+            self.writes.submit(
+                _load_write_rows, run_id, batch.writes, self.folder / f"writes-{self.batches}.jsonl"
+            )
+        if batch.ticks:
+            self.writes.submit(_load_csv_rows, run_id, "ticks", batch.ticks, _TICKS_CSV)
+
+    def finish(self) -> None:
+        """Wait for every queued batch; re-raises a batch's error."""
+        try:
+            self.rows.finish()
+            self.writes.finish()
+        finally:
+            self.close()
+
+    def close(self) -> None:
+        """Stop both lanes."""
+        self.rows.close()
+        self.writes.close()
+
+
+_STATUS_TYPE = pa.dictionary(pa.int32(), pa.string())
+#: (column names, Arrow types) of the CSV made from status rows and from tick rows; the
+#: last, empty column comes from the comma after every row.
+_STATUS_CSV = (
+    ("seq", "t_ns", "tick", "uid", "prev_status", "status"),
+    (pa.int64(), pa.int64(), pa.int64(), pa.int32(), _STATUS_TYPE, _STATUS_TYPE),
+)
+_TICKS_CSV = (
+    ("tick", "start_ns", "end_ns", "root_status"),
+    (pa.int64(), pa.int64(), pa.int64(), _STATUS_TYPE),
+)
+
+
+def _load_csv_rows(
+    con: duckdb.DuckDBPyConnection,
+    run_id: str,
+    table: str,
+    rows: bytearray,
+    layout: tuple[tuple[str, ...], tuple[pa.DataType, ...]],
+) -> None:
+    """Rows ``[a,b,"X"],[c,d,"Y"],`` become the CSV lines ``a,b,X,`` (step 2), parsed
+    by Arrow's multithreaded CSV reader and inserted; rows it refuses are decoded as JSON
+    instead."""
+    if not rows:
+        return
+    body = rows.translate(_ROWS_TO_CSV, b'"]')
+    names, types = layout
+    try:
+        parsed = pa_csv.read_csv(
+            pa.py_buffer(memoryview(body)[1:]),
+            read_options=pa_csv.ReadOptions(column_names=[*names, "_"], block_size=8 << 20),
+            parse_options=pa_csv.ParseOptions(quote_char=False, double_quote=False),
+            convert_options=pa_csv.ConvertOptions(
+                include_columns=list(names),
+                column_types=dict(zip(names, types, strict=True)),
+                strings_can_be_null=False,
+            ),
+        )
+    except (pa.ArrowInvalid, pa.ArrowNotImplementedError):
+        parsed = None
+    del body
+    canonical = None if parsed is None else _canonical_statuses(parsed)
+    if canonical is None:
+        _insert_rows(con, run_id, table, orjson.loads(b"[" + bytes(rows[:-1]) + b"]"))
+        return
+    insert_arrow(con, table, run_id, canonical)
+
+
+_STATUS_DICTIONARY = pa.array(STATUS_NAMES)
+
+
+def _canonical_statuses(table: pa.Table) -> pa.Table | None:
+    """``table`` with each status column re-encoded over the ENUM's own dictionary (so
+    DuckDB takes the codes as they are); None if a column holds another name."""
+    for position, column in enumerate(table.columns):
+        if not pa.types.is_dictionary(column.type):
+            continue
+        chunks = []
+        for chunk in column.chunks:
+            codes = pa_compute.index_in(chunk.dictionary, value_set=_STATUS_DICTIONARY)
+            if codes.null_count:
+                return None
+            indices = pa_compute.take(codes.cast(pa.int8()), chunk.indices)
+            chunks.append(pa.DictionaryArray.from_arrays(indices, _STATUS_DICTIONARY))
+        table = table.set_column(
+            position,
+            table.field(position).name,
+            pa.chunked_array(chunks, pa.dictionary(pa.int8(), pa.string())),
+        )
+    return table
+
+
+def _load_write_rows(
+    con: duckdb.DuckDBPyConnection, run_id: str, lines: list[bytes | memoryview], path: Path
+) -> None:
+    """Each message's write rows are one JSON line ``{"w":[[…],[…]]}``; DuckDB unnests."""
+    if not lines:
+        return
+    longest = max(len(line) for line in lines) + 1024
+    with open(path, "wb") as file:
+        file.write(b'{"w":[' + b']}\n{"w":['.join(lines) + b"]}\n")
+    try:
+        con.execute(
+            """INSERT INTO blackboard
+            SELECT $run_id, r[1]::BIGINT, r[2]::BIGINT, r[3]::BIGINT, r[4] ->> '$',
+                   r[5] ->> '$', coalesce(r[6], 'null'::JSON), r[7] ->> '$', r[8]::INTEGER
+            FROM (SELECT unnest(w) AS r FROM read_json($path, format = 'newline_delimited',
+                  columns = {'w': 'JSON[][]'}, maximum_object_size = $longest))""",
+            {"run_id": run_id, "path": str(path), "longest": max(longest, 1 << 20)},
+        )
+    except duckdb.Error:
+        _insert_write_rows(con, run_id, orjson.loads(b"[" + b",".join(lines) + b"]"))
+    finally:
+        path.unlink()
+
+
+def _insert_status_rows(con: duckdb.DuckDBPyConnection, run_id: str, rows: list[list]) -> None:
+    if not rows:
+        return
+    columns = list(zip(*rows, strict=True))
+    table = pa.table(
+        {
+            "seq": pa.array(columns[0], pa.int64()),
+            "t_ns": pa.array(columns[1], pa.int64()),
+            "tick": pa.array(columns[2], pa.int64()),
+            "uid": pa.array(columns[3], pa.int32()),
+            "prev_status": pa.array(columns[4], pa.string()),
+            "status": pa.array(columns[5], pa.string()),
+        }
+    )
+    insert_arrow(con, "transitions", run_id, table)
+
+
+def _insert_write_rows(con: duckdb.DuckDBPyConnection, run_id: str, rows: list[list]) -> None:
+    if not rows:
+        return
+    columns = list(zip(*rows, strict=True))
+    values = [orjson.dumps(v).decode() for v in columns[5]]
+    table = pa.table(
+        {
+            "seq": pa.array(columns[0], pa.int64()),
+            "t_ns": pa.array(columns[1], pa.int64()),
+            "tick": pa.array(columns[2], pa.int64()),
+            "scope": pa.array(columns[3], pa.string()),
+            "key": pa.array(columns[4], pa.string()),
+            "value": pa.array(values, pa.string()),
+            "type": pa.array(columns[6], pa.string()),
+            "writer_uid": pa.array(columns[7], pa.int32()),
+        }
+    )
+    insert_arrow(con, "blackboard", run_id, table)
+
+
+def _insert_tick_rows(con: duckdb.DuckDBPyConnection, run_id: str, rows: list[list]) -> None:
+    if not rows:
+        return
+    columns = list(zip(*rows, strict=True))
+    table = pa.table(
+        {
+            "tick": pa.array(columns[0], pa.int64()),
+            "start_ns": pa.array(columns[1], pa.int64()),
+            "end_ns": pa.array(columns[2], pa.int64()),
+            "root_status": pa.array(columns[3], pa.string()),
+        }
+    )
+    insert_arrow(con, "ticks", run_id, table)
+
+
+def _insert_rows(con: duckdb.DuckDBPyConnection, run_id: str, table: str, rows: list[list]) -> None:
+    """Insert decoded JSON rows (the slow path) into ``table``."""
+    inserts = {
+        "transitions": _insert_status_rows,
+        "blackboard": _insert_write_rows,
+        "ticks": _insert_tick_rows,
+    }
+    inserts[table](con, run_id, rows)
+
+
+def load_other_messages(
+    con: duckdb.DuckDBPyConnection, run_id: str, collected: Collected, name: str
+) -> None:
+    """The messages the fast path did not recognise, decoded one by one."""
+    status: list[list] = []
+    writes: list[list] = []
+    try:
+        for payload in collected.other_events:
+            message = orjson.loads(payload)
+            status.extend(message.get("status", ()))
+            writes.extend(message.get("writes", ()))
+        ticks = [
+            row
+            for payload in collected.other_ticks
+            for row in orjson.loads(payload).get("ticks", ())
+        ]
+        _insert_status_rows(con, run_id, status)
+        _insert_write_rows(con, run_id, writes)
+        _insert_tick_rows(con, run_id, ticks)
+    except (ValueError, TypeError, AttributeError, IndexError, duckdb.Error) as error:
+        raise RecordingError(
+            f"{name}: a message does not follow the btlog format: {type(error).__name__}: {error}"
+        ) from None

@@ -1,0 +1,147 @@
+"""Cutting a recording's messages into row batches for bulk loading, without decoding.
+
+Python touches each *message* here (one per tick or per ~1000 grouped events), never
+each row; C++ parsers (``btlog.replay.load``) touch the rows. The file's records come
+from the one walker, ``btlog.record.walk`` (cut files, damaged chunks). Each
+``/btlog/events`` payload is cut into its two row lists: status rows hold only
+integers and status names, so the status list is the bytes between ``,"status":[`` and
+``],"writes":[``; blackboard rows carry arbitrary JSON values, so each message's write
+list is kept whole. Tick rows are cut like status rows. Anything else the fast path
+does not recognise (another key order, whitespace) is kept for the general decoding.
+"""
+
+from __future__ import annotations
+
+import struct
+from collections.abc import Callable, Iterator
+from dataclasses import dataclass, field
+from typing import Any
+
+import orjson
+from mcap.opcode import Opcode
+from mcap.records import Channel
+
+from btlog.record import format as fmt
+from btlog.record.walk import MESSAGE_HEAD, Walk, mapped, parse, records
+
+_EVENTS_HEAD = b'{"tick":'
+_STATUS_KEY = b',"status":['
+_WRITES_KEY = b'],"writes":['
+_TICKS_HEAD = b'{"ticks":['
+_TAIL = b"]}"
+_CHANNEL_ID = struct.Struct("<H")
+#: Bytes of rows gathered before they are handed to the loaders (while the walk goes on).
+BATCH_BYTES = 48 << 20
+
+
+@dataclass
+class RowBatch:
+    """Rows of consecutive messages, still bytes: status and tick rows as comma-joined
+    row lists (``[…],[…],``), write rows as one row list per message."""
+
+    status: bytearray = field(default_factory=bytearray)
+    writes: list[bytes | memoryview] = field(default_factory=list)
+    ticks: bytearray = field(default_factory=bytearray)
+
+    def __bool__(self) -> bool:
+        return bool(self.status or self.writes or self.ticks)
+
+
+@dataclass
+class Collected:
+    """What a scan found besides the bulk rows: metadata, tree, the rare messages, the
+    messages the fast path did not recognise, and what the walk noticed."""
+
+    walk: Walk
+    metadata: dict[str, str] | None = None
+    tree: dict | None = None
+    mutations: list[dict] = field(default_factory=list)
+    answers: list[dict] = field(default_factory=list)
+    other_events: list[bytes] = field(default_factory=list)
+    other_ticks: list[bytes] = field(default_factory=list)
+
+
+class McapScan:
+    """Scans a recording, handing each ``RowBatch`` of about ``BATCH_BYTES`` to
+    ``on_batch`` as soon as it is full."""
+
+    def __init__(self, path: str, on_batch: Callable[[RowBatch], None]) -> None:
+        self.path = path
+        self.out = Collected(Walk(path))
+        self.topics: dict[int, str] = {}
+        self.events_channel: bytes | None = None
+        self.batch = RowBatch()
+        self.on_batch = on_batch
+
+    def run(self) -> Collected:
+        """Scan the whole file; the last batch is handed over too."""
+        with mapped(self.path) as (data, size):
+            self._scan(records(data, size, self.out.walk))
+        if self.batch:
+            self.on_batch(self.batch)
+            self.batch = RowBatch()
+        return self.out
+
+    def _scan(self, walked: Iterator[tuple[int, Any, int, int]]) -> None:
+        """The records of the file: the events messages are cut here, inline; this loop
+        runs once per message of the run."""
+        message, channel, metadata = Opcode.MESSAGE, Opcode.CHANNEL, Opcode.METADATA
+        for opcode, buffer, body, end in walked:
+            if opcode == message:
+                if type(buffer) is not bytes:  # a message outside chunks: rare, copied
+                    buffer, body, end = buffer[body:end], 0, end - body
+                events = self.events_channel
+                if events is not None and buffer[body : body + 2] == events:
+                    self._events(buffer, body + MESSAGE_HEAD, end)
+                else:
+                    self._message(buffer, body, end)
+                if len(self.batch.status) + len(self.batch.ticks) >= BATCH_BYTES:
+                    self.on_batch(self.batch)
+                    self.batch = RowBatch()
+            elif opcode == channel:
+                self._channel(parse(opcode, buffer, body, end))
+            elif opcode == metadata and self.out.metadata is None:
+                record = parse(opcode, buffer, body, end)
+                if record.name == fmt.METADATA_NAME:
+                    self.out.metadata = record.metadata
+
+    def _events(self, buffer: bytes, start: int, end: int) -> None:
+        find = buffer.find
+        status = find(_STATUS_KEY, start + 8, start + 40) + 11
+        writes = find(_WRITES_KEY, status, end) if status > 10 else -1
+        if (
+            writes < 0
+            or not buffer.startswith(_EVENTS_HEAD, start)
+            or not buffer.endswith(_TAIL, start, end)
+        ):
+            self.out.other_events.append(bytes(buffer[start:end]))
+            return
+        view = memoryview(buffer)
+        if writes > status:
+            self.batch.status += view[status:writes]
+            self.batch.status += b","
+        if end - 2 > writes + 12:
+            self.batch.writes.append(view[writes + 12 : end - 2])
+
+    def _channel(self, channel: Channel) -> None:
+        self.topics[channel.id] = channel.topic
+        if channel.topic == fmt.EVENTS_TOPIC:
+            self.events_channel = _CHANNEL_ID.pack(channel.id)
+
+    def _message(self, buffer: bytes, body: int, end: int) -> None:
+        topic = self.topics.get(_CHANNEL_ID.unpack_from(buffer, body)[0])
+        payload = bytes(buffer[body + MESSAGE_HEAD : end])
+        out = self.out
+        if topic == fmt.TICKS_TOPIC:
+            if payload.startswith(_TICKS_HEAD) and payload.endswith(_TAIL):
+                if len(payload) > len(_TICKS_HEAD) + 2:
+                    self.batch.ticks += memoryview(payload)[len(_TICKS_HEAD) : -2]
+                    self.batch.ticks += b","
+            else:
+                out.other_ticks.append(payload)
+        elif topic == fmt.MUTATIONS_TOPIC:
+            out.mutations.append(orjson.loads(payload))
+        elif topic == fmt.ANSWERS_TOPIC:
+            out.answers.append(orjson.loads(payload))
+        elif topic == fmt.TREE_TOPIC and out.tree is None:
+            out.tree = orjson.loads(payload)

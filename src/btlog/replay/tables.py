@@ -1,0 +1,108 @@
+"""The read model's tables: their schema, and the few helpers every loader uses.
+
+The public tables (``runs``, ``nodes``, ``transitions``, ``blackboard``, ``ticks``,
+``mutations``) are the ones users write SQL against; internal tables start with ``_``:
+``_snapshots`` (the state every K events and the events up to the next one),
+``_mutations`` (the full mutation messages, to rebuild inserted nodes), ``_answers``
+(questions asked live) and ``_ingest`` (what was read, and from which file).
+"""
+
+from __future__ import annotations
+
+from typing import Any
+
+import duckdb
+import pyarrow as pa
+
+from btlog.status import STATUS_NAMES
+
+#: The layout of the read model; part of the cache key (bump when a table changes).
+INGEST_VERSION = "2"
+
+SCHEMA = (
+    # Status is numbered as BT.CPP numbers it; the ENUM uses the same order.
+    "CREATE TYPE status AS ENUM (" + ", ".join(f"'{name}'" for name in STATUS_NAMES) + ")",
+    """CREATE TABLE runs (run_id VARCHAR, file VARCHAR, tree_name VARCHAR,
+        started_at TIMESTAMP, duration_ns BIGINT, final_status status, domain VARCHAR,
+        seed BIGINT, metadata JSON)""",
+    """CREATE TABLE nodes (run_id VARCHAR, uid INTEGER, parent_uid INTEGER, idx INTEGER,
+        depth INTEGER, kind VARCHAR, type VARCHAR, name VARCHAR, path VARCHAR, ports JSON,
+        added_seq BIGINT)""",
+    """CREATE TABLE transitions (run_id VARCHAR, seq BIGINT, t_ns BIGINT, tick BIGINT,
+        uid INTEGER, prev_status status, status status)""",
+    """CREATE TABLE blackboard (run_id VARCHAR, seq BIGINT, t_ns BIGINT, tick BIGINT,
+        scope VARCHAR, key VARCHAR, value JSON, type VARCHAR, writer_uid INTEGER)""",
+    """CREATE TABLE ticks (run_id VARCHAR, tick BIGINT, start_ns BIGINT, end_ns BIGINT,
+        root_status status)""",
+    """CREATE TABLE mutations (run_id VARCHAR, seq BIGINT, t_ns BIGINT, op VARCHAR,
+        parent_uid INTEGER, after_uid INTEGER, inserted_root_uid INTEGER, question VARCHAR)""",
+    """CREATE TABLE _mutations (run_id VARCHAR, seq BIGINT, t_ns BIGINT, tick BIGINT,
+        message JSON)""",
+    """CREATE TABLE _answers (run_id VARCHAR, seq BIGINT, t_ns BIGINT, tick BIGINT,
+        question VARCHAR, intent VARCHAR, answer VARCHAR)""",
+    """CREATE TABLE _snapshots (run_id VARCHAR, seq BIGINT, t_ns BIGINT, tick BIGINT,
+        first_t_ns BIGINT, first_tick BIGINT, state JSON, events BLOB)""",
+    """CREATE TABLE _ingest (run_id VARCHAR, file VARCHAR, size BIGINT, mtime_ns BIGINT,
+        schema_version VARCHAR, ingest_version VARCHAR, events BIGINT, last_tick BIGINT,
+        truncated BOOLEAN, warnings JSON, snapshot_every BIGINT, tree JSON,
+        ingest_seconds DOUBLE, snapshot_seconds DOUBLE)""",
+)
+#: The tables users write SQL against.
+PUBLIC_TABLES = ("runs", "nodes", "transitions", "blackboard", "ticks", "mutations")
+INTERNAL_TABLES = ("_mutations", "_answers", "_snapshots", "_ingest")
+
+
+def create_schema(con: duckdb.DuckDBPyConnection) -> None:
+    """Create the ``status`` type and every table in the connection's current catalog."""
+    for statement in SCHEMA:
+        con.execute(statement)
+
+
+def first_row(
+    con: duckdb.DuckDBPyConnection, query: str, params: dict | list | None = None
+) -> tuple[Any, ...] | None:
+    """The first row of ``query`` (None if it has none). The result is fetched to its
+    end: DuckDB refuses new work on a connection with an unfinished result."""
+    rows = (
+        con.execute(query, params).fetchall()
+        if params is not None
+        else con.execute(query).fetchall()
+    )
+    return rows[0] if rows else None
+
+
+def one_row(
+    con: duckdb.DuckDBPyConnection, query: str, params: dict | list | None = None
+) -> tuple[Any, ...]:
+    """The first row of a query that always returns one (an aggregate, a key lookup)."""
+    row = first_row(con, query, params)
+    if row is None:
+        raise LookupError(f"no row for {' '.join(query.split())[:80]!r}")
+    return row
+
+
+def identifier(name: str) -> str:
+    """A quoted SQL identifier."""
+    return '"' + name.replace('"', '""') + '"'
+
+
+def insert_arrow(
+    con: duckdb.DuckDBPyConnection, table_name: str, run_id: str, table: pa.Table
+) -> None:
+    """Insert an Arrow table whose columns are the table's, without ``run_id``."""
+    view = f"_arrow_{table_name}"
+    con.register(view, table)
+    try:
+        names = ", ".join(table.column_names)
+        con.execute(
+            f"INSERT INTO {table_name} (run_id, {names}) SELECT $run_id, {names} FROM {view}",
+            {"run_id": run_id},
+        )
+    finally:
+        con.unregister(view)
+
+
+def discard_run(con: duckdb.DuckDBPyConnection, run_id: str) -> None:
+    """Delete every row of run ``run_id`` (a failed ingestion leaves nothing behind)."""
+    for table in PUBLIC_TABLES + INTERNAL_TABLES:
+        con.execute(f"DELETE FROM {table} WHERE run_id = $run_id", {"run_id": run_id})
