@@ -7,7 +7,9 @@ Usage (from the project root)::
 or ``python tests/oracle/btcpp_oracle.py``. The input may also carry ``"tick_mode"``:
 ``"once"`` (default, ``Tree::tickOnce``, which re-ticks the root in the same call while a node
 has emitted the wake-up signal and the root is RUNNING) or ``"exactly_once"``
-(``Tree::tickExactlyOnce``).
+(``Tree::tickExactlyOnce``). ``"file_log": PATH`` also records the run with BT.CPP's
+``FileLogger2`` (a ``.btlog``, released before the process exits so its writer thread has
+written everything); ``"tick_sleep_ms": N`` sleeps between ticks (so ticks are apart in time).
 
 Output, one JSON object on stdout::
 
@@ -39,6 +41,7 @@ import os
 import re
 import sys
 import tempfile
+import time
 from typing import Any
 
 if __package__:
@@ -137,7 +140,12 @@ def _make_factory(bt: Any, leaves: ScriptedLeaves, errors: list[str]) -> Any:
 
 
 def run_case(
-    xml: str, outcomes: dict[str, Any] | None, max_ticks: int, tick_mode: str = "once"
+    xml: str,
+    outcomes: dict[str, Any] | None,
+    max_ticks: int,
+    tick_mode: str = "once",
+    file_log: str | None = None,
+    tick_sleep_ms: float = 0.0,
 ) -> dict[str, Any]:
     """Run ``xml`` in BT.CPP for at most ``max_ticks`` ticks; return the result dict.
 
@@ -168,6 +176,7 @@ def run_case(
                 transitions.append([tick, *parsed])
 
     callback_errors: list[str] = []
+    file_logger: list[Any] = []
     capture = _StdoutCapture()
     keep_alive: list[Any] = []
     try:
@@ -179,9 +188,13 @@ def run_case(
             return result
         logger = bt.StdCoutLogger(tree)
         keep_alive += [factory, tree, logger]
+        if file_log:
+            file_logger.append(bt.FileLogger(tree, file_log))
         tick_fn = tree.tick_exactly_once if tick_mode == "exactly_once" else tree.tick_once
         last = "IDLE"
         for tick in range(1, max_ticks + 1):
+            if tick > 1 and tick_sleep_ms:
+                time.sleep(tick_sleep_ms / 1000)
             result["ticks"] = tick
             try:
                 last = tick_fn().name
@@ -204,6 +217,9 @@ def run_case(
                 result["error"] = f"halt: {exc}"
             collect(capture.read_lines(), result["ticks"])
     finally:
+        if file_logger:  # let its writer thread drain its queue, then release it
+            time.sleep(0.05)
+            file_logger.clear()
         collect(capture.restore(), result["ticks"])
         _KEEP.extend(keep_alive)
     return result
@@ -240,6 +256,8 @@ def main() -> None:
         case.get("outcomes"),
         int(case.get("max_ticks", 20)),
         case.get("tick_mode", "once"),
+        case.get("file_log"),
+        float(case.get("tick_sleep_ms", 0.0)),
     )
     sys.stdout.write(json.dumps(result) + "\n")
     sys.stdout.flush()

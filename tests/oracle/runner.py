@@ -32,8 +32,9 @@ def case_payload(case: Any) -> dict[str, Any]:
         "outcomes": data.get("outcomes") or {},
         "max_ticks": int(data.get("max_ticks", 20)),
     }
-    if data.get("tick_mode"):
-        payload["tick_mode"] = data["tick_mode"]
+    for key in ("tick_mode", "file_log", "tick_sleep_ms"):
+        if data.get(key):
+            payload[key] = data[key]
     return payload
 
 

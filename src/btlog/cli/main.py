@@ -168,11 +168,15 @@ def build_parser() -> argparse.ArgumentParser:
     validate = commands.add_parser("validate", help="load and check a tree")
     validate.add_argument("tree", metavar="TREE")
     validate.add_argument("--json", action="store_true", help="JSON output")
+
+    from btlog.cli import sources
+
+    sources.add_parsers(commands)
     return parser
 
 
 def _handlers():
-    from btlog.cli import checks, commands, replay
+    from btlog.cli import checks, commands, replay, sources
 
     return {
         "run": commands.run,
@@ -186,6 +190,8 @@ def _handlers():
         "replay": replay.replay,
         "diff": checks.diff,
         "check": checks.check,
+        "import": sources.import_,
+        "export": sources.export,
     }
 
 

@@ -60,7 +60,7 @@ TOPICS = {
 
 METADATA_NAME = "btlog.run"
 #: Metadata values stored as JSON text (the others are plain strings).
-JSON_METADATA = ("outcomes", "fail", "questions", "argv")
+JSON_METADATA = ("outcomes", "fail", "questions", "argv", "source")
 
 _STATUS_BY_NAME = {s.name: s for s in Status}
 

@@ -7,6 +7,14 @@ assigned in depth-first pre-order from 1 with each subtree's nodes right after i
 node. v3 rules apply when the root has no ``BTCPP_format``: a SubTree's instance name is
 forced to its ID and its remapping ``a="b"`` names the parent key ``b`` directly.
 
+Imported runs (``btlog import``, ``btlog attach``) come from robots whose node types btlog
+has no implementation of: ``accept_unknown=True`` accepts any type, its kind taken from
+the ``<TreeNodesModel>`` (the tree's own, or one read by ``load_nodes_model``), else from
+a generic tag (``<Control ID=…>``) or its children (none: action, one: decorator, more:
+control). The XML BT.CPP writes for its loggers and Groot2 (``WriteTreeToXML``) is read
+too: each subtree instance is its own ``<BehaviorTree _fullpath=…>``, matched to its
+``<SubTree _fullpath=…>``, and a SubTree's name is the last part of that path.
+
 XML is untrusted input: entities are not resolved, DTDs and network access are refused,
 files are bounded in size, and every error names the file, the line and what is wrong.
 """
@@ -113,16 +121,24 @@ def parse_xml(data: bytes, file: str) -> etree._Element:
     return document.getroot()
 
 
-def load_tree(
-    source: str | os.PathLike, registry: Registry | None = None, main_tree: str | None = None
-) -> Tree:
-    """Load a tree from an XML file (its includes resolved against its folder)."""
-    path = Path(source)
+def _read_bytes(source: str | os.PathLike) -> bytes:
     try:
-        data = path.read_bytes()
+        return Path(source).read_bytes()
     except OSError as error:
         raise TreeError(f"cannot read the file: {error.strerror}", str(source)) from None
-    return _Loader(registry or Registry()).load(data, str(source), path.parent, main_tree)
+
+
+def load_tree(
+    source: str | os.PathLike,
+    registry: Registry | None = None,
+    main_tree: str | None = None,
+    accept_unknown: bool = False,
+) -> Tree:
+    """Load a tree from an XML file (its includes resolved against its folder);
+    ``accept_unknown`` accepts node types btlog has no implementation of (imports)."""
+    data = _read_bytes(source)
+    loader = _Loader(registry or Registry(), accept_unknown)
+    return loader.load(data, str(source), Path(source).parent, main_tree)
 
 
 def load_tree_text(
@@ -131,17 +147,36 @@ def load_tree_text(
     main_tree: str | None = None,
     file: str = "<string>",
     base_dir: str | os.PathLike = ".",
+    accept_unknown: bool = False,
 ) -> Tree:
     """Load a tree from XML text; includes resolve against ``base_dir``."""
     data = text.encode() if isinstance(text, str) else text
-    return _Loader(registry or Registry()).load(data, file, Path(base_dir), main_tree)
+    loader = _Loader(registry or Registry(), accept_unknown)
+    return loader.load(data, file, Path(base_dir), main_tree)
+
+
+def load_nodes_model(source: str | os.PathLike, registry: Registry | None = None) -> Registry:
+    """A copy of ``registry`` with the declarations of the ``<TreeNodesModel>`` in the XML
+    file ``source`` (e.g. BT.CPP's ``writeTreeNodesModelXML``); other elements are ignored."""
+    file = str(source)
+    root = parse_xml(_read_bytes(source), file)
+    loader = _Loader(registry or Registry(), accept_unknown=True)
+    models = [c for c in root if c.tag == "TreeNodesModel"]
+    if root.tag != "root" or not models:
+        raise TreeError("no <TreeNodesModel> under <root>", file, root.sourceline)
+    for element in models:
+        loader._read_model(element, file)
+    return loader.registry
 
 
 class _Loader:
-    def __init__(self, registry: Registry) -> None:
+    def __init__(self, registry: Registry, accept_unknown: bool = False) -> None:
         self.registry = registry.copy()
+        self.accept_unknown = accept_unknown
         self.documents: list[_Document] = []
         self.definitions: dict[str, _Definition] = {}
+        #: subtree instances of BT.CPP-written XML, by their ``_fullpath``
+        self.instances: dict[str, _Definition] = {}
         self.format = 4
         self.uid = 0
         self.tree: Tree | None = None
@@ -210,6 +245,11 @@ class _Loader:
                     element.sourceline,
                 )
             tree_id = f"BehaviorTree_{len(self.definitions)}"
+        fullpath = element.get("_fullpath")
+        if fullpath is not None and fullpath not in self.instances:
+            self.instances[fullpath] = _Definition(element, file)
+            if tree_id in self.definitions:
+                return  # another instance of a subtree, in BT.CPP-written XML
         if tree_id in self.definitions:
             raise TreeError(f"tree {tree_id!r} is defined twice", file, element.sourceline)
         nodes = [c for c in element if isinstance(c.tag, str)]
@@ -259,6 +299,8 @@ class _Loader:
             ports = {}
             for port in entry:
                 if not isinstance(port.tag, str):
+                    continue
+                if port.tag == "MetadataFields":
                     continue
                 direction = MODEL_PORT_TAGS.get(port.tag)
                 if direction is None or not port.get("name"):
@@ -324,18 +366,23 @@ class _Loader:
                     f"<{tag}> must not have an ID attribute (use <Action ID=…>)", file, line
                 )
         node_type = self.registry.get(type_id)
-        strict = node_type is not None
-        if node_type is None:
+        strict = node_type is not None and not self.accept_unknown
+        if node_type is None and self.accept_unknown:
+            node_type = _imported_type(type_id, tag, len(children))
+        elif node_type is None:
             if children:
                 raise TreeError(f"unknown node type {type_id!r} with children", file, line)
             node_type = NodeType(type_id, leaf_kind(tag))
         elif node_type.declared_only and node_type.kind in (CONTROL, DECORATOR):
-            raise TreeError(
-                f"node type {type_id!r} is declared in <TreeNodesModel> but btlog "
-                "has no implementation of it",
-                file,
-                line,
-            )
+            if self.accept_unknown:
+                node_type = _imported_type(type_id, tag, len(children), node_type)
+            else:
+                raise TreeError(
+                    f"node type {type_id!r} is declared in <TreeNodesModel> but btlog "
+                    "has no implementation of it",
+                    file,
+                    line,
+                )
         if node_type.kind == SUBTREE:
             raise TreeError(f"{type_id!r} is a subtree; use <SubTree ID={type_id!r}/>", file, line)
         type_id = node_type.id
@@ -385,7 +432,7 @@ class _Loader:
             if strict and attribute not in node_type.ports:
                 raise TreeError(f"{node_type.id} has no port {attribute!r}", file, line)
             spec = node_type.ports.get(attribute)
-            if spec is not None and blackboard_key(value) is None:
+            if spec is not None and not self.accept_unknown and blackboard_key(value) is None:
                 _check_literal(value, spec, attribute, node_type.id, file, line)
             ports[attribute] = Port(value, node_type.port_direction(attribute))
         for port_name, spec in node_type.ports.items():
@@ -418,7 +465,9 @@ class _Loader:
             raise TreeError(f"subtree cycle: {chain}", file, line)
         v3_plain = self.format == 3 and element.tag == "SubTree"
         uid = self._next_uid()
-        name = subtree_id if v3_plain else element.get("name", subtree_id)
+        fullpath = element.get("_fullpath")
+        given_name = element.get("name") or _name_from_fullpath(fullpath, subtree_id, uid)
+        name = subtree_id if v3_plain else given_name or subtree_id
         node = Node(
             uid=uid,
             type="SubTree",
@@ -453,11 +502,16 @@ class _Loader:
         if v3_plain:
             inner = scope if shared else (f"{scope}/" if scope else "") + subtree_id
         else:
-            given = element.get("name")
+            given = given_name
             inner = (f"{scope}/" if scope else "") + (given if given else f"{subtree_id}::{uid}")
+        definition = (
+            self.instances.get(fullpath or "")
+            or self.instances.get((fullpath or "").removesuffix(f"::{uid}"))
+            or self.definitions[subtree_id]
+        )
         child = self._build_tree_root(
             subtree_id,
-            self.definitions[subtree_id],
+            definition,
             node,
             inner,
             inner + "/",
@@ -490,6 +544,32 @@ class _Loader:
                     file,
                     line,
                 )
+
+
+def _imported_type(
+    type_id: str, tag: str, children: int, declared: NodeType | None = None
+) -> NodeType:
+    """The type of a node btlog cannot run, in an imported tree: kind from its declaration,
+    a generic tag, or its children; any number of children."""
+    if declared is not None:
+        kind = declared.kind
+    elif tag in GENERIC_TAGS:
+        kind = GENERIC_TAGS[tag]
+    elif children:
+        kind = DECORATOR if children == 1 else CONTROL
+    else:
+        kind = leaf_kind(tag)
+    ports = declared.ports if declared is not None else {}
+    bounds = (0, None) if kind in (CONTROL, DECORATOR) else (0, 0)
+    return NodeType(type_id, kind, ports, children=bounds, declared_only=True)
+
+
+def _name_from_fullpath(fullpath: str | None, subtree_id: str, uid: int) -> str | None:
+    """A SubTree's instance name from BT.CPP's ``_fullpath`` (None when it was unnamed)."""
+    if not fullpath:
+        return None
+    last = fullpath.rsplit("/", 1)[-1]
+    return None if last == f"{subtree_id}::{uid}" else last
 
 
 def _special_attribute(

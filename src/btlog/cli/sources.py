@@ -1,0 +1,123 @@
+"""The commands that bring other tools' runs in and out: ``import``, ``attach``, ``export``."""
+
+from __future__ import annotations
+
+import argparse
+import sys
+from argparse import Namespace
+from pathlib import Path
+
+from btlog.sources.builder import DEFAULT_TICK_GAP_NS, BuildResult
+
+
+def add_parsers(commands: argparse._SubParsersAction) -> None:
+    """Add ``import`` and ``export`` to the command line."""
+    imp = commands.add_parser(
+        "import",
+        help="import a BT.CPP log (FileLogger2 .btlog, SqliteLogger .db3/.btdb)",
+        description="Turn a BehaviorTree.CPP log into a btlog recording (format from content).",
+    )
+    imp.add_argument("file", metavar="FILE", help=".btlog, .db3 or .btdb file")
+    imp.add_argument("-o", "--output", metavar="OUT", help="recording to write (FILE.mcap)")
+    imp.add_argument("--tree", metavar="XML", help="the tree file (checked against the log's)")
+    imp.add_argument("--session", metavar="N", type=int, help="SQLite: only this session")
+    _add_model_and_gap(imp)
+
+    export = commands.add_parser(
+        "export",
+        help="write a recording in another tool's format (btlog: BT.CPP FileLogger2)",
+        description="Write a recording as a BT.CPP FileLogger2 .btlog, which Groot2 opens.",
+    )
+    export.add_argument("run", metavar="REC", help="a btlog recording")
+    export.add_argument("--to", choices=("btlog",), required=True, help="the format")
+    export.add_argument("output", metavar="OUT", help="file to write (OUT.btlog)")
+
+
+def _add_model_and_gap(parser: argparse.ArgumentParser) -> None:
+    parser.add_argument(
+        "--nodes-model",
+        metavar="FILE",
+        help="XML with a <TreeNodesModel> declaring the kinds and ports of your node types",
+    )
+    parser.add_argument(
+        "--tick-gap",
+        metavar="MS",
+        type=float,
+        default=DEFAULT_TICK_GAP_NS / 1e6,
+        help="a pause longer than this between transitions starts a new tick (default 1)",
+    )
+
+
+def _registry(args: Namespace):
+    from btlog.tree.loader import load_nodes_model
+
+    return load_nodes_model(args.nodes_model) if args.nodes_model else None
+
+
+def _gap_ns(args: Namespace) -> int:
+    if not args.tick_gap > 0:
+        raise ValueError(f"--tick-gap {args.tick_gap}: must be > 0")
+    return round(args.tick_gap * 1e6)
+
+
+def _report(source: str, result: BuildResult, command: str) -> None:
+    for warning in result.warnings:
+        print(f"btlog {command}: warning: {warning}", file=sys.stderr)
+    print(
+        f"{source} -> {result.path}: {result.transitions} transitions, "
+        f"{result.writes} writes, {result.ticks} ticks, last root status {result.final_status}"
+    )
+
+
+def import_(args: Namespace) -> int:
+    """``btlog import``: one recording per run in the file."""
+    from btlog.sources import detect
+
+    kind = detect(args.file)
+    registry, gap = _registry(args), _gap_ns(args)
+    default = Path(args.output) if args.output else Path(Path(args.file).name).with_suffix(".mcap")
+    if kind == "btcpp-filelog2":
+        from btlog.sources.btcpp_filelog import import_filelog
+
+        if args.session is not None:
+            raise ValueError(f"{args.file}: --session applies to SQLite logs only")
+        results = [import_filelog(args.file, default, args.tree, registry, gap)]
+    else:
+        from btlog.sources.btcpp_sqlite import import_sqlite, open_log, sessions
+
+        con = open_log(args.file)
+        ids = [s.session_id for s in sessions(con)]
+        con.close()
+        if args.session is not None:
+            outputs = {args.session: default}
+        elif len(ids) == 1:
+            outputs = {ids[0]: default}
+        else:
+            outputs = {i: default.with_name(f"{default.stem}-session{i}.mcap") for i in ids}
+        if not outputs:
+            raise ValueError(f"{args.file}: the log has no sessions")
+        results = import_sqlite(args.file, outputs, args.tree, registry, gap)
+    for result in results:
+        _report(args.file, result, "import")
+    return 0
+
+
+def export(args: Namespace) -> int:
+    """``btlog export REC --to btlog OUT.btlog``."""
+    from btlog.record.reader import open_recording
+    from btlog.sinks.btcpp_filelog import export_filelog
+
+    if Path(args.output).suffix != ".btlog":
+        raise ValueError(f"{args.output}: Groot2 and BT.CPP expect the suffix .btlog")
+    recording = open_recording(args.run)
+    for warning in recording.warnings:
+        print(f"btlog export: warning: {warning}", file=sys.stderr)
+    result = export_filelog(recording, args.output)
+    if result.writes_left_out:
+        print(
+            f"btlog export: note: {result.writes_left_out} blackboard writes left out "
+            "(FileLogger2 holds transitions only)",
+            file=sys.stderr,
+        )
+    print(f"{args.run} -> {result.path}: {result.transitions} transitions")
+    return 0

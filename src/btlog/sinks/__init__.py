@@ -1,0 +1,5 @@
+"""Sinks: btlog recordings written in other tools' formats (the mirror of ``btlog.sources``).
+
+One module per format, each a function ``export_…(recording, output) -> ExportResult``:
+``btcpp_filelog`` writes BehaviorTree.CPP's FileLogger2 ``.btlog``, which Groot2 opens.
+"""

@@ -1,0 +1,42 @@
+"""Sources and sinks: runs made by other tools, in and out of btlog recordings.
+
+Shaped like BehaviorTree.CPP's loggers: one small interface per direction, each format a
+small module of its own.
+
+- Sources turn another tool's log into an ordinary btlog recording through the one
+  ``RecordingBuilder`` (``btlog.sources.builder``): a tree, a stream of transitions
+  with times, optional blackboard writes, and where it came from. BT.CPP's FileLogger2
+  (``btcpp_filelog``) and SQLite logger (``btcpp_sqlite``) files are imported; a running
+  BT.CPP process is recorded live through the Groot2 protocol (``groot2``).
+  ``btcpp_tree`` reads the tree XML BT.CPP writes for its loggers.
+- Sinks write a btlog recording in another tool's format (``btlog.sources.sinks``):
+  FileLogger2 for Groot2.
+
+``detect`` tells the import format of a file from its first bytes.
+"""
+
+from __future__ import annotations
+
+import os
+
+from btlog.sources.builder import SourceError
+
+FILELOG_MAGIC = b"BTCPP4-FileLogger2"
+SQLITE_MAGIC = b"SQLite format 3\x00"
+
+
+def detect(path: str | os.PathLike) -> str:
+    """``"btcpp-filelog2"`` or ``"btcpp-sqlite"`` from the file's first bytes."""
+    try:
+        with open(path, "rb") as stream:
+            head = stream.read(32)
+    except OSError as error:
+        raise SourceError(f"{os.fspath(path)}: cannot read the file: {error.strerror}") from None
+    if head.startswith(FILELOG_MAGIC):
+        return "btcpp-filelog2"
+    if head.startswith(SQLITE_MAGIC):
+        return "btcpp-sqlite"
+    raise SourceError(
+        f"{os.fspath(path)}: not a BT.CPP log (no 'BTCPP4-FileLogger2' magic, not SQLite); "
+        f"first bytes {head[:18]!r}"
+    )

@@ -1,0 +1,137 @@
+"""BehaviorTree.CPP v4 ``FileLogger2`` files (``.btlog``, what Groot2 opens).
+
+The layout (``src/loggers/bt_file_logger_v2.cpp``), little-endian throughout:
+
+- the magic ``BTCPP4-FileLogger2`` and one version byte (1);
+- an i32 length N and N bytes of tree XML (``WriteTreeToXML`` with ``_uid``/``_fullpath``
+  and the ``<TreeNodesModel>``);
+- an i64: the start time in µs since the Unix epoch;
+- 9-byte records until the end: a u48 time in µs since the start, a u16 node uid and a
+  u8 status (0 IDLE, 1 RUNNING, 2 SUCCESS, 3 FAILURE, 4 SKIPPED).
+
+BT.CPP writes the records from a thread, so a file copied while the robot runs may end in
+the middle of a record: the whole records are imported, with a warning.
+"""
+
+from __future__ import annotations
+
+import os
+import struct
+from collections.abc import Iterator
+from dataclasses import dataclass
+from datetime import UTC, datetime
+from pathlib import Path
+
+from btlog.sources import FILELOG_MAGIC
+from btlog.sources.btcpp_tree import tree_from_file, tree_from_log_xml
+from btlog.sources.builder import (
+    DEFAULT_TICK_GAP_NS,
+    BuildResult,
+    RecordingBuilder,
+    Source,
+    SourceError,
+)
+from btlog.status import Status
+from btlog.tree.model import Tree
+from btlog.tree.registry import Registry
+
+FORMAT = "btcpp-filelog2"
+VERSION = 1
+RECORD_SIZE = 9
+_HEAD = len(FILELOG_MAGIC) + 1
+_STATUSES = tuple(Status)
+
+
+@dataclass
+class FileLog:
+    """A parsed FileLogger2 file: version, tree XML, start time (µs), raw records."""
+
+    file: str
+    version: int
+    xml: bytes
+    start_us: int
+    records: bytes
+    trailing: int
+
+    def __len__(self) -> int:
+        return len(self.records) // RECORD_SIZE
+
+    def transitions(self) -> Iterator[tuple[int, int, Status]]:
+        """``(µs since start, uid, status)`` for each record, in file order."""
+        data = self.records
+        for offset in range(0, len(data), RECORD_SIZE):
+            t_us = int.from_bytes(data[offset : offset + 6], "little")
+            uid = int.from_bytes(data[offset + 6 : offset + 8], "little")
+            code = data[offset + 8]
+            if code >= len(_STATUSES):
+                record = offset // RECORD_SIZE
+                raise SourceError(f"{self.file}: record {record}: status {code} is not 0-4")
+            yield t_us, uid, _STATUSES[code]
+
+
+def read_filelog(path: str | os.PathLike) -> FileLog:
+    """Parse a FileLogger2 file (``SourceError`` naming the file and the bad value)."""
+    file = os.fspath(path)
+    try:
+        data = Path(path).read_bytes()
+    except OSError as error:
+        raise SourceError(f"{file}: cannot read the file: {error.strerror}") from None
+    if not data.startswith(FILELOG_MAGIC):
+        raise SourceError(f"{file}: not a FileLogger2 log (magic {data[:18]!r})")
+    if len(data) < _HEAD + 4:
+        raise SourceError(f"{file}: ends inside the header ({len(data)} bytes)")
+    version = data[len(FILELOG_MAGIC)]
+    if version != VERSION:
+        raise SourceError(f"{file}: FileLogger2 version {version}; btlog reads version 1")
+    (size,) = struct.unpack_from("<i", data, _HEAD)
+    body = _HEAD + 4
+    if size <= 0 or body + size + 8 > len(data):
+        raise SourceError(f"{file}: XML length {size} does not fit in the file ({len(data)} bytes)")
+    xml = data[body : body + size]
+    (start_us,) = struct.unpack_from("<q", data, body + size)
+    records = data[body + size + 8 :]
+    trailing = len(records) % RECORD_SIZE
+    return FileLog(file, version, xml, start_us, records[: len(records) - trailing], trailing)
+
+
+def import_filelog(
+    path: str | os.PathLike,
+    output: str | os.PathLike,
+    tree_file: str | os.PathLike | None = None,
+    registry: Registry | None = None,
+    tick_gap_ns: int = DEFAULT_TICK_GAP_NS,
+) -> BuildResult:
+    """Import a FileLogger2 file into the recording ``output``."""
+    log = read_filelog(path)
+    tree = log_tree(log, tree_file, registry)
+    started = datetime.fromtimestamp(log.start_us / 1e6, UTC)
+    source = Source.of_file(FORMAT, path, version=log.version, records=len(log))
+    builder = RecordingBuilder(
+        output,
+        tree,
+        source,
+        started_at=started,
+        attachments=[("btcpp-tree.xml", log.xml)],
+        tick_gap_ns=tick_gap_ns,
+    )
+    try:
+        for t_us, uid, status in log.transitions():
+            builder.transition(t_us * 1000, uid, status)
+    except BaseException:
+        builder.close()
+        Path(output).unlink(missing_ok=True)
+        raise
+    if log.trailing:
+        builder.warnings.append(
+            f"{log.file}: the file ends inside a record ({log.trailing} of 9 bytes); "
+            f"imported the {len(log)} whole records"
+        )
+    return builder.close()
+
+
+def log_tree(log: FileLog, tree_file: str | os.PathLike | None, registry: Registry | None) -> Tree:
+    """The log's tree, or the user's ``tree_file`` once it is checked against it."""
+    tree = tree_from_log_xml(log.xml, f"{log.file} (embedded XML)", registry)
+    if tree_file is None:
+        return tree
+    return tree_from_file(tree_file, tree, registry)

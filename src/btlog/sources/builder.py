@@ -1,0 +1,256 @@
+"""Turn another tool's log of a run into an ordinary btlog recording.
+
+Every importer (BT.CPP's FileLogger2 and SQLite logs, a live Groot2 connection, Nav2's
+rosbags) hands the same three things to a ``RecordingBuilder``: the tree (loaded with
+``accept_unknown=True``, so types btlog cannot run are kept with their kind), a stream
+of status transitions with their times, and, when the source has them, blackboard
+writes. The builder numbers the events (gap-free ``seq``), infers the ticks, and writes
+the same topics a ``btlog run`` writes, through the same ``Recorder``; the metadata
+``source`` says where the run came from (format, file, sha256 and the format's details).
+
+Ticks are inferred, because BT.CPP's loggers record transitions, not ticks. The rule:
+
+1. a new tick starts at the first transition, and at the first transition after the
+   root returned to IDLE (BT.CPP resets a finished root at the end of its tick) or
+   after the root completed (SUCCESS/FAILURE) when the source logs no reset;
+2. a root that leaves IDLE starts a new tick;
+3. while the root stays RUNNING (it logs nothing then), a new tick starts at a new
+   timestamp group: a transition more than ``tick_gap_ns`` (default 1 ms) after the
+   previous one. Ticks in which nothing changed leave no trace and are not counted.
+
+The tick's record runs from its first transition to its last; its root status is the
+root's result in that tick (RUNNING while it runs). Blackboard writes belong to the
+current tick (tick 0 before the first transition).
+"""
+
+from __future__ import annotations
+
+import hashlib
+import os
+from collections.abc import Iterable, Mapping
+from dataclasses import dataclass, field
+from datetime import UTC, datetime
+from pathlib import Path
+from typing import Any
+
+from btlog.events import TickRecord, type_name
+from btlog.record.recorder import Recorder
+from btlog.status import FAILURE, IDLE, RUNNING, SUCCESS, Status
+from btlog.tree.model import Tree
+
+#: A gap between two transitions longer than this starts a new tick (rule 3).
+DEFAULT_TICK_GAP_NS = 1_000_000
+
+
+class SourceError(ValueError):
+    """Input that cannot be imported; ``str()`` is one line naming the file and value."""
+
+
+@dataclass(frozen=True)
+class Source:
+    """Where an imported run came from (the recording's ``source`` metadata)."""
+
+    format: str
+    file: str
+    sha256: str = ""
+    details: Mapping[str, Any] = field(default_factory=dict)
+
+    @classmethod
+    def of_file(cls, format: str, path: str | os.PathLike, **details: Any) -> Source:
+        """A source read from the file ``path`` (its sha256 computed here)."""
+        digest = hashlib.sha256()
+        with open(path, "rb") as stream:
+            for block in iter(lambda: stream.read(1 << 20), b""):
+                digest.update(block)
+        return cls(format, os.fspath(path), digest.hexdigest(), details)
+
+    def describe(self) -> dict[str, Any]:
+        """The JSON-ready ``source`` metadata value."""
+        return {"format": self.format, "file": self.file, "sha256": self.sha256, **self.details}
+
+
+@dataclass
+class BuildResult:
+    """What a builder wrote: the file, counts, the last root status and any warnings."""
+
+    path: Path
+    run_id: str
+    transitions: int
+    writes: int
+    ticks: int
+    final_status: Status
+    warnings: list[str]
+
+
+class RecordingBuilder:
+    """Writes the MCAP recording ``output`` of ``tree`` from a stream of transitions.
+
+    Call ``transition`` (and ``write``) in the source's order, with times in ns since
+    the run's start; ``close`` finishes the file and returns a ``BuildResult``. The
+    file is crash-safe as ``btlog run``'s (flushed at least every ``flush_interval``
+    seconds of wall time, on tick boundaries or ``flush``). Unknown uids and statuses
+    raise ``SourceError``; times going backwards are clamped, with a warning.
+    """
+
+    def __init__(
+        self,
+        output: str | os.PathLike,
+        tree: Tree,
+        source: Source,
+        started_at: datetime | None = None,
+        attachments: Iterable[tuple[str, bytes]] = (),
+        metadata: Mapping[str, Any] | None = None,
+        tick_gap_ns: int = DEFAULT_TICK_GAP_NS,
+        flush_interval: float = 1.0,
+    ) -> None:
+        self.tree = tree
+        self.source = source
+        self.tick_gap_ns = tick_gap_ns
+        self.warnings: list[str] = []
+        self._status = {uid: IDLE for uid in tree.nodes}
+        self._root = tree.root.uid
+        self._seq = 0
+        self._transitions = 0
+        self._writes = 0
+        self._tick = 0
+        self._tick_start = 0
+        self._tick_result: Status = IDLE
+        self._boundary = True
+        self._root_done = False
+        self._last_t = 0
+        self._clamped = 0
+        self._prev_mismatch = 0
+        started = (started_at or datetime.now(UTC)).astimezone(UTC)
+        record = {
+            "started_at": started.isoformat(timespec="microseconds"),
+            "tree_name": tree.name,
+            "tree_file": "",
+            "clock": "imported",
+            "source": source.describe(),
+            "tick_rule": f"inferred (gap {tick_gap_ns} ns)",
+            **(metadata or {}),
+        }
+        self.recorder = Recorder(output, tree, record, attachments, flush_interval=flush_interval)
+
+    @property
+    def seq(self) -> int:
+        """The number of events so far (the next event's seq)."""
+        return self._seq
+
+    def status_of(self, uid: int) -> Status:
+        """The node's status after the transitions so far."""
+        return self._status[uid]
+
+    def transition(self, t_ns: int, uid: int, status: Status, prev: Status | None = None) -> None:
+        """Node ``uid`` changed to ``status`` at ``t_ns``; ``prev`` (when the source
+        has it) is checked against the status this stream gave the node."""
+        if uid not in self._status:
+            raise SourceError(f"{self.source.file}: node uid {uid} is not in the tree")
+        t_ns = self._clamp(t_ns)
+        old = self._status[uid]
+        if prev is not None and prev != old:
+            self._prev_mismatch += 1
+        if self._starts_tick(uid, old, status, t_ns):
+            self._next_tick(t_ns)
+        self._status[uid] = status
+        if uid == self._root:
+            self._root_changed(status)
+        self.recorder.on_status(self._seq, t_ns, self._tick, uid, old, status)
+        self._seq += 1
+        self._transitions += 1
+        self._last_t = t_ns
+
+    def write(
+        self,
+        t_ns: int,
+        scope: str,
+        key: str,
+        value: Any,
+        writer_uid: int | None = None,
+        type_label: str | None = None,
+    ) -> None:
+        """Entry ``key`` of ``scope`` was set to ``value`` at ``t_ns`` (in the current tick)."""
+        t_ns = self._clamp(t_ns)
+        label = type_label or type_name(value)
+        self.recorder.on_write(self._seq, t_ns, self._tick, scope, key, value, label, writer_uid)
+        self._seq += 1
+        self._writes += 1
+        self._last_t = t_ns
+
+    def flush(self) -> None:
+        """Write what is buffered to the file now."""
+        self.recorder.flush()
+
+    def close(self) -> BuildResult:
+        """Finish the file (the last tick's record included)."""
+        if self._tick > 0:
+            self._end_tick()
+        if self._clamped:
+            self.warnings.append(
+                f"{self._clamped} transitions were stamped earlier than the one before them; "
+                "their times were raised to keep the order"
+            )
+        if self._prev_mismatch:
+            self.warnings.append(
+                f"{self._prev_mismatch} transitions name a previous status that differs "
+                "from the node's last logged status (transitions missing from the source?)"
+            )
+        self.recorder.close()
+        return BuildResult(
+            Path(self.recorder.path),
+            self.recorder.metadata["run_id"],
+            self._transitions,
+            self._writes,
+            self._tick,
+            self._tick_result,
+            self.warnings,
+        )
+
+    def __enter__(self) -> RecordingBuilder:
+        return self
+
+    def __exit__(self, *exc_info: object) -> None:
+        if not self.recorder.closed:
+            self.close()
+
+    # -- ticks -------------------------------------------------------------------------
+    def _clamp(self, t_ns: int) -> int:
+        if t_ns < self._last_t:
+            self._clamped += 1
+            return self._last_t
+        return t_ns
+
+    def _starts_tick(self, uid: int, old: Status, status: Status, t_ns: int) -> bool:
+        """The module docstring's rule."""
+        if self._boundary:
+            return True
+        if uid == self._root:
+            if old == IDLE:
+                return True
+            if status == IDLE:
+                return False  # the reset of a finished root ends its tick
+        if self._root_done:
+            return True
+        return t_ns - self._last_t > self.tick_gap_ns
+
+    def _next_tick(self, t_ns: int) -> None:
+        if self._tick > 0:
+            self._end_tick()
+        self._tick += 1
+        self._tick_start = t_ns
+        self._boundary = False
+        self._root_done = False
+        self._tick_result = self._status[self._root]
+
+    def _end_tick(self) -> None:
+        record = TickRecord(self._tick, self._tick_start, self._last_t, self._tick_result)
+        self.recorder.on_tick(record)
+
+    def _root_changed(self, status: Status) -> None:
+        if status == IDLE:
+            self._boundary = True
+        elif status in (SUCCESS, FAILURE):
+            self._tick_result = status
+            self._root_done = True
+        elif status == RUNNING:
+            self._tick_result = RUNNING

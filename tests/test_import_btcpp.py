@@ -1,0 +1,130 @@
+"""BT.CPP's own logs imported into btlog recordings, checked against BT.CPP itself.
+
+Random trees with scripted leaves run in BehaviorTree.CPP (behaviortreepy) with its
+``FileLogger2`` and ``StdCoutLogger``; the ``.btlog`` is imported and its transitions must
+equal the ``StdCoutLogger`` stream and btlog's own run of the same tree and outcomes.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import os
+import subprocess
+import sys
+from concurrent.futures import ThreadPoolExecutor
+from pathlib import Path
+
+import pytest
+
+from btlog.record.reader import open_recording
+from btlog.sources.btcpp_filelog import import_filelog, read_filelog
+from btlog.sources.btcpp_tree import tree_from_log_xml
+from btlog.tree.loader import load_tree_text
+from btlog.tree.model import CONDITION
+from btlog.tree.registry import NodeType, Registry
+from tests.oracle.random_trees import generate
+from tests.oracle.runner import have_behaviortreepy, run_oracle
+from tests.test_differential import btlog_transitions
+
+CASES = int(os.environ.get("BTLOG_IMPORT_CASES", "30"))
+TICK_SLEEP_MS = 8  # ticks this far apart in time, so the tick rule can find them
+TICK_GAP_NS = 3_000_000
+needs_btcpp = pytest.mark.skipif(not have_behaviortreepy(), reason="behaviortreepy missing")
+
+
+def _btcpp_run(seed: int, folder: Path) -> tuple[object, dict | None, Path]:
+    case = generate(seed)
+    log = folder / f"case{seed}.btlog"
+    payload = {**dataclasses.asdict(case), "file_log": str(log), "tick_sleep_ms": TICK_SLEEP_MS}
+    return case, run_oracle(payload), log
+
+
+@pytest.fixture(scope="module")
+def btcpp_logs(tmp_path_factory) -> list[tuple[object, dict, Path]]:
+    """(case, BT.CPP's StdCoutLogger result, its FileLogger2 file) for each random tree."""
+    if not have_behaviortreepy():
+        pytest.skip("behaviortreepy missing")
+    folder = tmp_path_factory.mktemp("btcpp-logs")
+    with ThreadPoolExecutor(max_workers=2) as pool:
+        runs = list(pool.map(lambda s: _btcpp_run(s, folder), range(5000, 5000 + CASES)))
+    return [(c, r, p) for c, r, p in runs if r is not None and not r.get("error")]
+
+
+def _imported(log: Path, out: Path) -> tuple[list[list], object]:
+    result = import_filelog(log, out, tick_gap_ns=TICK_GAP_NS)
+    assert not result.warnings, result.warnings
+    recording = open_recording(out)
+    names = {n.uid: n.name for n in recording.tree}
+    rows = [
+        [e.tick, names[e.uid], e.prev.name, e.status.name]
+        for e in recording.events
+        if hasattr(e, "uid")
+    ]
+    return rows, recording
+
+
+def _boundaries(transitions: list[list]) -> set[int]:
+    """The indexes of the transitions that start a tick (empty ticks leave no trace)."""
+    return {i for i, row in enumerate(transitions) if i == 0 or row[0] != transitions[i - 1][0]}
+
+
+@needs_btcpp
+def test_imported_filelogger2_equals_btcpp_stream_and_btlog_run(btcpp_logs, tmp_path) -> None:
+    assert len(btcpp_logs) >= CASES * 0.9
+    ticks = splits = 0
+    for case, result, log in btcpp_logs:
+        rows, recording = _imported(log, tmp_path / f"{log.stem}.mcap")
+        theirs = result["transitions"]
+        assert [r[1:] for r in rows] == [t[1:] for t in theirs], f"seed {case.seed}"
+        assert [r[1:] for r in rows] == [t[1:] for t in btlog_transitions(case)]
+        # Ticks are TICK_SLEEP_MS apart, more than the gap: every real tick is found. A
+        # process preempted mid-tick on a loaded machine may split a tick in two.
+        inferred, real = _boundaries(rows), _boundaries(theirs)
+        assert real <= inferred, f"seed {case.seed}: a tick was not found"
+        ticks, splits = ticks + len(real), splits + len(inferred - real)
+        assert recording.metadata["source"]["format"] == "btcpp-filelog2"
+        assert len(recording.metadata["source"]["sha256"]) == 64
+    print(f"import differential: {len(btcpp_logs)} runs, {ticks} ticks, {splits} split")
+    assert splits <= 2 + ticks // 20
+
+
+@needs_btcpp
+def test_embedded_tree_equals_btlog_load_of_the_same_xml(btcpp_logs) -> None:
+    registry = Registry()
+    registry.register(NodeType("ScriptedCondition", CONDITION, declared_only=True))
+
+    def shape(tree) -> list[tuple]:
+        return [(n.uid, n.kind, n.type, n.name, n.path, n.scope) for n in tree]
+
+    for case, _result, log in btcpp_logs:
+        parsed = read_filelog(log)
+        ours = load_tree_text(case.xml, registry)
+        theirs = tree_from_log_xml(parsed.xml, str(log))
+        assert shape(theirs) == shape(ours), f"seed {case.seed}"
+
+
+@needs_btcpp
+def test_truncated_btlog_imports_whole_records_with_a_warning(btcpp_logs, tmp_path) -> None:
+    _case, _result, log = max(btcpp_logs, key=lambda item: item[2].stat().st_size)
+    data = log.read_bytes()
+    cut = tmp_path / "cut.btlog"
+    cut.write_bytes(data[:-4])
+    whole = len(read_filelog(log))
+    proc = subprocess.run(
+        [
+            sys.executable,
+            "-m",
+            "btlog.cli.main",
+            "import",
+            str(cut),
+            "-o",
+            str(tmp_path / "c.mcap"),
+        ],
+        capture_output=True,
+        text=True,
+        check=False,
+    )
+    assert proc.returncode == 0, proc.stderr
+    assert "ends inside a record" in proc.stderr
+    assert f"{whole - 1} transitions" in proc.stdout
+    assert len(open_recording(tmp_path / "c.mcap").events) == whole - 1
