@@ -8,6 +8,7 @@ from argparse import Namespace
 from pathlib import Path
 
 from btlog.sources.builder import DEFAULT_TICK_GAP_NS, BuildResult
+from btlog.tree.registry import Registry
 
 
 def add_parsers(commands: argparse._SubParsersAction) -> None:
@@ -48,7 +49,7 @@ def _add_model_and_gap(parser: argparse.ArgumentParser) -> None:
     )
 
 
-def _registry(args: Namespace):
+def _registry(args: Namespace) -> Registry | None:
     from btlog.tree.loader import load_nodes_model
 
     return load_nodes_model(args.nodes_model) if args.nodes_model else None
