@@ -3,10 +3,13 @@
 from __future__ import annotations
 
 import os
+import shutil
 import signal
 import subprocess
 import sys
+import tempfile
 import time
+from collections.abc import Iterator
 from pathlib import Path
 
 import pytest
@@ -15,7 +18,17 @@ from btlog.record.reader import open_recording
 
 ROOT = Path(__file__).resolve().parent.parent
 KITTING = ROOT / "trees" / "kitting.xml"
-RECORDINGS = ROOT / "recordings"
+#: Copies of ``recordings/`` that the tests query, so the caches built while reading
+#: them never land in the project (filled by the ``recording_copies`` fixture).
+RECORDINGS = Path(tempfile.gettempdir()) / f"btlog-test-recordings-{os.getpid()}"
+
+
+@pytest.fixture(scope="module", autouse=True)
+def recording_copies() -> Iterator[Path]:
+    """Copy the project's recordings to ``RECORDINGS`` for this module's tests."""
+    shutil.copytree(ROOT / "recordings", RECORDINGS, dirs_exist_ok=True)
+    yield RECORDINGS
+    shutil.rmtree(RECORDINGS, ignore_errors=True)
 
 
 def btlog(*args: str, cwd: Path = ROOT, timeout: float = 120) -> subprocess.CompletedProcess:
@@ -96,7 +109,7 @@ def test_validate(tmp_path: Path) -> None:
     assert result.returncode == 0
     assert "OK (BehaviorTree.CPP v4 format)" in result.stdout
     assert "subgoals: go insert large gear; go pick screw; go place screw" in result.stdout
-    paper = ROOT.parent / "shared" / "reference" / "uml-robotics" / "kitting-tree.xml"
+    paper = ROOT / "tests" / "data" / "v3-gear-pair.xml"
     assert "v3 format" in btlog("validate", str(paper)).stdout
 
 

@@ -22,10 +22,12 @@ from __future__ import annotations
 import os
 import time
 from dataclasses import dataclass, field
+from pathlib import Path
 from typing import Any, ClassVar
 
 import pytest
 
+from btlog.domains import make_domain
 from btlog.domains.outcomes import Outcomes, scripted_leaf_factory
 from btlog.events import BlackboardWrite, EventLog
 from btlog.executor.actions import Condition, InputPort, OutputPort, SyncAction
@@ -37,7 +39,7 @@ from btlog.tree.loader import TreeError, load_tree, load_tree_text
 from btlog.tree.model import Tree
 from btlog.tree.registry import Registry
 
-REFERENCE = "/work/shared/reference/uml-robotics"
+ROOT = Path(__file__).resolve().parent.parent
 CROSSCHECK = os.environ.get("BTLOG_ORACLE_CROSSCHECK") == "1"
 DEFAULT_OUTCOME = {"status": "SUCCESS", "ticks": 0}
 
@@ -2296,51 +2298,75 @@ def test_generic_form_and_default_ports() -> None:
 
 
 @pytest.mark.parametrize(
-    ("file", "nodes", "first"),
+    ("tree_file", "nodes", "first"),
     [
         (
-            "taxi-domain-tree.xml",
+            "tests/data/v3-delivery.xml",
             21,
-            [
-                "go deliver passenger",
-                "go pick up passenger",
-                "go pick up passenger",
-                "navigate to passenger",
-                "",
-            ],
+            ["deliver a passenger", "collect passenger", "collect passenger"],
         ),
         (
-            "kitting-tree.xml",
+            "tests/data/v3-gear-pair.xml",
+            29,
+            ["assemble a gear pair", "fetch gear", "fetch gear", "fetch gear", ""],
+        ),
+        (
+            "paper/taxi-domain-tree.xml",
+            21,
+            ["go deliver passenger", "go pick up passenger", "go pick up passenger"],
+        ),
+        (
+            "paper/kitting-tree.xml",
             79,
-            [
-                "build a gearbox kit",
-                "go insert large gear",
-                "go insert large gear",
-                "go insert large gear",
-                "",
-            ],
+            ["build a gearbox kit", "go insert large gear", "go insert large gear"],
         ),
     ],
+    indirect=["tree_file"],
 )
-def test_paper_v3_trees_load(file: str, nodes: int, first: list[str]) -> None:
-    """The paper's v3 trees load: uids 1..N in DFS pre-order, SubTree names forced to their
-    ID, the v3 spelling ``RetryUntilSuccesful`` accepted."""
-    tree = load_tree(f"{REFERENCE}/{file}")
+def test_v3_trees_load(tree_file: Path, nodes: int, first: list[str]) -> None:
+    """v3 trees (ours and the paper's) load: uids 1..N in DFS pre-order, SubTree names
+    forced to their ID, the v3 spelling ``RetryUntilSuccesful`` accepted."""
+    tree = load_tree(tree_file)
     assert tree.format == 3 and len(tree) == nodes
     assert [n.uid for n in tree] == list(range(1, nodes + 1))
-    assert [n.name for n in tree][:5] == first
+    assert [n.name for n in tree][: len(first)] == first
     subtrees = [n for n in tree if n.type == "SubTree"]
     assert subtrees and all(n.name == n.attributes["subtree_id"] for n in subtrees)
-    assert all(n.children[0].scope == n.path for n in subtrees)
+    own = [n for n in subtrees if "shared_blackboard" not in n.attributes]
+    assert all(n.children[0].scope == n.path for n in own)
+    shared = [n for n in subtrees if "shared_blackboard" in n.attributes]
+    assert all(n.children[0].scope == n.parent.scope for n in shared)
 
 
-def test_paper_kitting_tree_uses_v3_names() -> None:
+@pytest.mark.parametrize(
+    ("tree_file", "retries", "first_leaf"),
+    [
+        ("tests/data/v3-gear-pair.xml", 3, "drive to the gear tray"),
+        ("paper/kitting-tree.xml", 6, "move to see chuck"),
+    ],
+    indirect=["tree_file"],
+)
+def test_v3_retry_spelling(tree_file: Path, retries: int, first_leaf: str) -> None:
     """``RetryUntilSuccesful`` is loaded as RetryUntilSuccessful, with its port."""
-    tree = load_tree(f"{REFERENCE}/kitting-tree.xml")
-    retries = [n for n in tree if n.type == "RetryUntilSuccessful"]
-    assert len(retries) == 6
-    assert all(n.ports["num_attempts"].value == "3" for n in retries)
-    assert tree.node(5).kind == "decorator" and tree.node(5).children[0].name == "move to see chuck"
+    tree = load_tree(tree_file)
+    found = [n for n in tree if n.type == "RetryUntilSuccessful"]
+    assert len(found) == retries
+    assert all(n.ports["num_attempts"].value in ("2", "3") for n in found)
+    assert tree.node(5).kind == "decorator" and tree.node(5).children[0].name == first_leaf
+
+
+def test_v3_gear_pair_runs_with_shared_blackboards() -> None:
+    """Our v3 tree under the kitting domain: ``__shared_blackboard`` subtrees pass the gear's
+    pose through the root blackboard, ``SubTreePlus`` remaps a literal and a ``{key}``."""
+    tree = load_tree(ROOT / "tests" / "data" / "v3-gear-pair.xml")
+    leaves = make_domain("kitting").leaf_factory(tree, Outcomes())
+    executor = Executor(tree, leaf_factory=leaves)
+    assert executor.run(max_ticks=5000) is SUCCESS
+    boards = executor.blackboards()
+    assert set(boards[""]) == {"gear pose", "grip pose", "mount pose"}
+    assert boards[""]["mount pose"]["z"] == round(boards[""]["gear pose"]["z"] + 0.1, 4)
+    [operator] = [scope for scope in boards if scope.startswith("tell operator")]
+    assert boards[operator] == {"note": "gear pair assembled"}
 
 
 # -- loader errors ---------------------------------------------------------------------------

@@ -26,7 +26,7 @@ from btlog.tree.registry import NodeType, Registry
 from tests.oracle.random_trees import generate
 
 ROOT = Path(__file__).resolve().parent.parent
-KITTING = ROOT.parent / "shared" / "reference" / "uml-robotics" / "kitting-tree.xml"
+KITTING = ROOT / "trees" / "kitting.xml"
 ASKED = [q for intent, q in QUESTIONS.items() if intent != "can"] + [
     "Can you insert large gear?",
     "Can you detect chuck?",

@@ -17,9 +17,8 @@ from btlog.status import RUNNING
 from btlog.tree.loader import load_tree
 
 ROOT = Path(__file__).resolve().parent.parent
-PAPER = ROOT.parent / "shared" / "reference" / "uml-robotics"
-KITTING_TREES = [PAPER / "kitting-tree.xml", ROOT / "trees" / "kitting.xml"]
-TAXI_TREES = [PAPER / "taxi-domain-tree.xml", ROOT / "trees" / "taxi.xml"]
+KITTING_TREES = ["paper/kitting-tree.xml", "trees/kitting.xml"]
+TAXI_TREES = ["paper/taxi-domain-tree.xml", "trees/taxi.xml"]
 
 SUBGOAL_STEPS = (
     'To achieve the subgoal "go insert large gear", I need to do 3 steps. '
@@ -67,7 +66,7 @@ class LiveRun:
         return bool(self.projection.state.retry_attempts)
 
 
-@pytest.mark.parametrize("tree", KITTING_TREES, ids=lambda p: p.name)
+@pytest.mark.parametrize("tree_file", KITTING_TREES, indirect=True)
 @pytest.mark.parametrize(
     ("node", "why"),
     [
@@ -79,8 +78,8 @@ class LiveRun:
         ),
     ],
 )
-def test_hierarchical_answers_kitting(tree: Path, node: str, why: str) -> None:
-    run = LiveRun(tree, "kitting")
+def test_hierarchical_answers_kitting(tree_file: Path, node: str, why: str) -> None:
+    run = LiveRun(tree_file, "kitting")
     run.until(node)
     texts = [a.text for a in explain(run.projection.tree, run.projection.state)]
     assert texts == [
@@ -94,9 +93,9 @@ def test_hierarchical_answers_kitting(tree: Path, node: str, why: str) -> None:
     ]
 
 
-@pytest.mark.parametrize("tree", KITTING_TREES, ids=lambda p: p.name)
-def test_look_at_chuck_failing_once(tree: Path) -> None:
-    run = LiveRun(tree, "kitting", {"nodes": {"look at chuck": ["FAILURE", "SUCCESS"]}})
+@pytest.mark.parametrize("tree_file", KITTING_TREES, indirect=True)
+def test_look_at_chuck_failing_once(tree_file: Path) -> None:
+    run = LiveRun(tree_file, "kitting", {"nodes": {"look at chuck": ["FAILURE", "SUCCESS"]}})
     run.until("retreat arm")
     assert (
         run.ask("What went wrong?") == "I could not insert large gear because look at chuck failed."
@@ -104,9 +103,11 @@ def test_look_at_chuck_failing_once(tree: Path) -> None:
     assert run.ask("Was there anything wrong?") == run.ask("How was the failure handled?")
 
 
-@pytest.mark.parametrize("tree", KITTING_TREES, ids=lambda p: p.name)
-def test_look_at_chuck_failing_twice(tree: Path) -> None:
-    run = LiveRun(tree, "kitting", {"nodes": {"look at chuck": ["FAILURE", "FAILURE", "SUCCESS"]}})
+@pytest.mark.parametrize("tree_file", KITTING_TREES, indirect=True)
+def test_look_at_chuck_failing_twice(tree_file: Path) -> None:
+    run = LiveRun(
+        tree_file, "kitting", {"nodes": {"look at chuck": ["FAILURE", "FAILURE", "SUCCESS"]}}
+    )
     run.until("retreat arm", LiveRun.retrying)
     assert run.ask("What went wrong?") == (
         "I am retrying for attempt 1 to go insert large gear. "
@@ -114,7 +115,7 @@ def test_look_at_chuck_failing_twice(tree: Path) -> None:
     )
 
 
-@pytest.mark.parametrize("tree", KITTING_TREES, ids=lambda p: p.name)
+@pytest.mark.parametrize("tree_file", KITTING_TREES, indirect=True)
 @pytest.mark.parametrize(
     ("failing", "cause"),
     [
@@ -122,9 +123,9 @@ def test_look_at_chuck_failing_twice(tree: Path) -> None:
         ("lift torso", "I could not detect chuck because lift torso failed."),
     ],
 )
-def test_retried_failure(tree: Path, failing: str, cause: str) -> None:
+def test_retried_failure(tree_file: Path, failing: str, cause: str) -> None:
     """Asked while the failed node runs again in the retry's second attempt (paper 7.1.3)."""
-    run = LiveRun(tree, "kitting", {"nodes": {failing: ["FAILURE", "SUCCESS"]}})
+    run = LiveRun(tree_file, "kitting", {"nodes": {failing: ["FAILURE", "SUCCESS"]}})
     run.until(failing, LiveRun.retrying)
     assert (
         run.ask("What went wrong?")
@@ -132,9 +133,9 @@ def test_retried_failure(tree: Path, failing: str, cause: str) -> None:
     )
 
 
-@pytest.mark.parametrize("tree", KITTING_TREES, ids=lambda p: p.name)
-def test_can_you_insert_large_gear(tree: Path) -> None:
-    run = LiveRun(tree, "kitting")
+@pytest.mark.parametrize("tree_file", KITTING_TREES, indirect=True)
+def test_can_you_insert_large_gear(tree_file: Path) -> None:
+    run = LiveRun(tree_file, "kitting")
     run.until("trial and error insert")
     result = answer(run.projection.tree, run.projection.state, "Can you insert large gear?")
     assert result.text == "Yes. I will insert large gear after go insert large gear."
@@ -147,15 +148,15 @@ def test_can_you_insert_large_gear(tree: Path) -> None:
     assert plan.after.description == "go insert large gear"
 
 
-def test_cannot_redo_unknown_behaviour() -> None:
-    run = LiveRun(KITTING_TREES[0], "kitting")
+def test_cannot_redo_unknown_behaviour(paper_trees: Path) -> None:
+    run = LiveRun(paper_trees / "kitting-tree.xml", "kitting")
     run.until("move to see chuck")
     assert run.ask("Can you fly to the moon?") == 'Sorry. I cannot redo "fly to the moon".'
 
 
-@pytest.mark.parametrize("tree", TAXI_TREES, ids=lambda p: p.name)
-def test_taxi_move_right(tree: Path) -> None:
-    run = LiveRun(tree, "taxi")
+@pytest.mark.parametrize("tree_file", TAXI_TREES, indirect=True)
+def test_taxi_move_right(tree_file: Path) -> None:
+    run = LiveRun(tree_file, "taxi")
     run.until("move right")
     texts = [a.text for a in explain(run.projection.tree, run.projection.state)]
     assert texts[:6] == [
@@ -170,9 +171,9 @@ def test_taxi_move_right(tree: Path) -> None:
     ]
 
 
-@pytest.mark.parametrize("tree", TAXI_TREES, ids=lambda p: p.name)
-def test_taxi_drop_off(tree: Path) -> None:
-    run = LiveRun(tree, "taxi")
+@pytest.mark.parametrize("tree_file", TAXI_TREES, indirect=True)
+def test_taxi_drop_off(tree_file: Path) -> None:
+    run = LiveRun(tree_file, "taxi")
     run.until("drop off passenger")
     texts = [a.text for a in explain(run.projection.tree, run.projection.state)]
     assert texts[:6] == [
@@ -188,8 +189,8 @@ def test_taxi_drop_off(tree: Path) -> None:
 
 
 @pytest.mark.parametrize("subgoal", ["go drop off passenger", "go pick up passenger"])
-def test_taxi_can_you_insert_subgoal(subgoal: str) -> None:
-    run = LiveRun(TAXI_TREES[0], "taxi")
+def test_taxi_can_you_insert_subgoal(subgoal: str, paper_trees: Path) -> None:
+    run = LiveRun(paper_trees / "taxi-domain-tree.xml", "taxi")
     run.until("pick up passenger")
     result = answer(run.projection.tree, run.projection.state, f"Can you {subgoal}?")
     assert result.text == f"Yes. I will {subgoal} after go pick up passenger."
@@ -199,7 +200,7 @@ def test_taxi_can_you_insert_subgoal(subgoal: str) -> None:
 def test_live_insertion_runs_after_the_subgoal() -> None:
     """Asked live, "Can you insert large gear?" changes the running tree: the copy runs
     after the current subgoal and before the next one."""
-    run = LiveRun(KITTING_TREES[1], "kitting")
+    run = LiveRun(ROOT / "trees" / "kitting.xml", "kitting")
     log = EventLog()
     run.executor.subscribe(log)
     run.until("trial and error insert")

@@ -42,11 +42,8 @@ from btlog.status import IDLE, RUNNING, SUCCESS
 from btlog.tree.loader import load_tree, load_tree_text
 from btlog.tree.registry import Registry
 
-KITTING = Path("/work/shared/reference/uml-robotics/kitting-tree.xml")
-if not KITTING.exists():  # a checkout with shared/ beside it
-    KITTING = Path(__file__).resolve().parents[2] / "shared/reference/uml-robotics/kitting-tree.xml"
+KITTING = Path(__file__).resolve().parent.parent / "trees" / "kitting.xml"
 
-pytestmark = pytest.mark.skipif(not KITTING.exists(), reason="kitting reference tree missing")
 
 METADATA = {
     "domain": "outcomes",

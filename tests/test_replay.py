@@ -41,11 +41,9 @@ from btlog.status import FAILURE, IDLE, RUNNING, SUCCESS
 from btlog.tree.loader import load_tree
 
 ROOT = Path(__file__).resolve().parent.parent
-KITTING = ROOT.parent / "shared" / "reference" / "uml-robotics" / "kitting-tree.xml"
+KITTING = ROOT / "trees" / "kitting.xml"
 TAXI = ROOT / "trees" / "taxi.xml"
 DEFAULT = {"status": "SUCCESS", "ticks": 1}
-
-pytestmark = pytest.mark.skipif(not KITTING.exists(), reason="kitting reference tree missing")
 
 
 # -- recording runs ---------------------------------------------------------------------------

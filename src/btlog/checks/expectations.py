@@ -260,11 +260,12 @@ class StoredRun:
     the final status. Use as a context manager, or call ``close``."""
 
     def __init__(self, path: str | os.PathLike) -> None:
-        from btlog.replay.database import open_runs
+        from btlog.replay.database import open_runs, user_cache_dir
 
         self.path = os.fspath(path)
         self._recording: Recording | None = None
-        self._database = open_runs(self.path)
+        # Checked recordings usually live in a project: their caches stay out of it.
+        self._database = open_runs(self.path, cache_dir=user_cache_dir())
         try:
             self._run = self._database.run(self.path)
         except BaseException:

@@ -48,6 +48,13 @@ OBJECTS = {
     "detect caddy": (0.60, -0.25, 0.80),
 }
 INSERTION_OFFSET = (-0.05, 0.0, 0.02)
+#: Optional ports and the value a real skill uses when the tree leaves them out (the
+#: paper's v3 trees declare no ports, so "convert to grasp pose" may come without shift_z).
+OPTIONAL_PORTS = {
+    "convert to grasp pose": {"shift_z": 0.0},
+    "reach": {"shift_x": 0.0, "shift_y": 0.0, "shift_z": 0.0},
+    "open gripper": {"position": 0.1},
+}
 
 
 class KittingDomain(Domain):
@@ -94,7 +101,7 @@ class KittingDomain(Domain):
         if leaf.node.type == "convert to insertion pose":
             dx, dy, dz = INSERTION_OFFSET
         else:
-            dx, dy, dz = 0.0, 0.0, leaf.get_input("shift_z", "float")
+            dx, dy, dz = 0.0, 0.0, optional_input(leaf, "shift_z")
         pose.update(
             x=round(pose["x"] + dx, 4), y=round(pose["y"] + dy, 4), z=round(pose["z"] + dz, 4)
         )
@@ -108,3 +115,10 @@ class KittingDomain(Domain):
         except NodeExecutionError:
             return FAILURE
         return status
+
+
+def optional_input(leaf: ScriptedLeaf, port: str) -> float:
+    """A numeric optional port: its value when the tree sets it, else the skill's default."""
+    if leaf.has_port(port):
+        return float(leaf.get_input(port, "float"))
+    return OPTIONAL_PORTS[leaf.node.type][port]
