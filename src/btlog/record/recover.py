@@ -5,8 +5,10 @@ reader does so, with a warning), but not by tools that need the index (seeking r
 ``mcap info``, Foxglove). ``recover`` reads every complete record of the broken file —
 schemas, channels, the ``btlog.run`` metadata, the attachments and every message of every
 whole chunk — and writes them, unchanged and in the same order, into a new file that the
-MCAP writer finishes with a summary. The new file is written beside the target and
-moved into place at the end, so the target may be the broken file itself.
+MCAP writer finishes with a summary. A damaged chunk (bad CRC, bad framing) is dropped and
+every intact chunk after it kept (``btlog.record.walk``); the report says which bytes were
+dropped and which seqs are missing from what was saved. The new file is written beside
+the target and moved into place at the end, so the target may be the broken file itself.
 """
 
 from __future__ import annotations
@@ -23,7 +25,7 @@ from mcap.writer import Writer
 from btlog.record import format as fmt
 from btlog.record.reader import RecordingError, raw_records
 from btlog.record.recorder import DEFAULT_COMPRESSION
-from btlog.record.walk import Walk
+from btlog.record.walk import Dropped, Walk
 
 
 @dataclass
@@ -38,15 +40,44 @@ class RecoveryReport:
     ticks: int = 0
     last_seq: int | None = None
     warnings: list[str] = field(default_factory=list)
+    #: bytes of the source that could not be read (damaged chunks or framing)
+    dropped: list[Dropped] = field(default_factory=list)
+    #: ``(first, last)`` seq ranges absent from what was saved, below ``last_seq``
+    missing: list[tuple[int, int]] = field(default_factory=list)
+    _ranges: list[tuple[int, int]] = field(default_factory=list, repr=False)
 
     def summary(self) -> str:
         """One line for a person."""
         state = "truncated" if self.truncated else "complete"
         last = "no events" if self.last_seq is None else f"last seq {self.last_seq}"
-        return (
+        line = (
             f"{self.source} ({state}) -> {self.target}: {self.events} events, "
             f"{self.ticks} ticks, {self.messages} messages saved; {last}"
         )
+        if self.dropped:
+            spans = ", ".join(f"{d.length} bytes at byte {d.offset}" for d in self.dropped)
+            line += f"; dropped {len(self.dropped)} damaged part(s): {spans}"
+        if self.missing:
+            seqs = ", ".join(f"{a}" if a == b else f"{a}-{b}" for a, b in self.missing)
+            line += f"; seqs missing: {seqs}"
+        return line
+
+    def __str__(self) -> str:
+        return self.summary()
+
+    def note_seqs(self, first: int, last: int) -> None:
+        """Note that the seqs ``first..last`` of one message were saved."""
+        self._ranges.append((first, last))
+        if self.last_seq is None or last > self.last_seq:
+            self.last_seq = last
+
+    def find_missing(self) -> None:
+        """Fill ``missing``: the holes between the saved seq ranges (from seq 0)."""
+        covered = -1
+        for first, last in sorted(self._ranges):
+            if first > covered + 1:
+                self.missing.append((covered + 1, first - 1))
+            covered = max(covered, last)
 
 
 class _Copier:
@@ -92,7 +123,7 @@ class _Copier:
         self.report.messages += 1
         try:
             self._count(topic, message.data)
-        except (orjson.JSONDecodeError, AttributeError, TypeError, IndexError):
+        except (orjson.JSONDecodeError, AttributeError, TypeError, IndexError, ValueError):
             self.report.warnings.append(
                 f"{self.report.source}: a {topic} message is not "
                 "in the btlog format (copied, not counted)"
@@ -101,19 +132,17 @@ class _Copier:
     def _count(self, topic: str, data: bytes) -> None:
         if topic == fmt.EVENTS_TOPIC:
             body = orjson.loads(data)
-            rows = [*body.get("status", ()), *body.get("writes", ())]
-            self.report.events += len(rows)
-            self._saw_seq(max((row[0] for row in rows), default=None))
+            seqs = [row[0] for key in ("status", "writes") for row in body.get(key, ())]
+            self.report.events += len(seqs)
+            if seqs:
+                self.report.note_seqs(min(seqs), max(seqs))
         elif topic == fmt.MUTATIONS_TOPIC:
             self.report.events += 1
-            self._saw_seq(orjson.loads(data).get("seq"))
+            seq = orjson.loads(data).get("seq")
+            if isinstance(seq, int):
+                self.report.note_seqs(seq, seq)
         elif topic == fmt.TICKS_TOPIC:
             self.report.ticks += len(orjson.loads(data).get("ticks", ()))
-
-    def _saw_seq(self, seq: int | None) -> None:
-        last = self.report.last_seq
-        if seq is not None and (last is None or seq > last):
-            self.report.last_seq = seq
 
 
 def recover(broken: str | os.PathLike, fixed: str | os.PathLike) -> RecoveryReport:
@@ -132,6 +161,8 @@ def recover(broken: str | os.PathLike, fixed: str | os.PathLike) -> RecoveryRepo
     _rewrite(records, target, header.library, report)
     report.truncated = walk.truncated
     report.warnings.extend(walk.warnings)
+    report.dropped.extend(walk.dropped)
+    report.find_missing()
     return report
 
 

@@ -16,6 +16,7 @@ import tempfile
 import time
 from dataclasses import dataclass, replace
 from pathlib import Path
+from typing import Any
 
 import duckdb
 import orjson
@@ -34,7 +35,7 @@ from btlog.replay.run_tables import (
 )
 from btlog.replay.scan import Collected, McapScan
 from btlog.replay.snapshots import DEFAULT_SNAPSHOT_EVERY, build_snapshots
-from btlog.replay.tables import INGEST_VERSION, discard_run, one_row
+from btlog.replay.tables import INGEST_VERSION, discard_run, first_row, one_row
 from btlog.tree.model import Tree
 
 
@@ -103,6 +104,7 @@ def load_tables(
         tree_of(name, collected.tree)
         insert_small_tables(con, run_id, collected)
         extent = extent_of(con, run_id)
+        _check_consistency(con, run_id, name, extent)
         insert_run(con, run_id, name, collected.tree, metadata, extent)
         report = IngestReport(
             run_id,
@@ -171,6 +173,43 @@ def _load_rows(con: duckdb.DuckDBPyConnection, run_id: str, name: str) -> Collec
         raise RecordingError(f"{name}: not a btlog recording: no {fmt.METADATA_NAME} metadata")
     load_other_messages(con, run_id, collected, name)
     return collected
+
+
+def _check_consistency(
+    con: duckdb.DuckDBPyConnection, run_id: str, name: str, extent: Extent
+) -> None:
+    """RecordingError when what was read cannot be a run: a status change of a node the
+    tree does not have, or two events with one seq (CRCs catch damage; this catches
+    files written wrong). Seqs are checked in one pass without a hash table when the run
+    looks gap-free (the sum of a hash of every seq equals that of ``0..last``), with a
+    ``GROUP BY`` only for a run with gaps."""
+    params: dict[str, Any] = {"run_id": run_id}
+    stray = first_row(
+        con,
+        """SELECT seq, uid FROM transitions t WHERE run_id = $run_id AND NOT EXISTS
+        (SELECT 1 FROM nodes n WHERE n.run_id = $run_id AND n.uid = t.uid) LIMIT 1""",
+        params,
+    )
+    if stray is not None:
+        raise RecordingError(
+            f"{name}: event seq {stray[0]} is about node uid {stray[1]}, "
+            "which the tree does not have"
+        )
+    seqs = """SELECT seq FROM transitions WHERE run_id = $run_id
+        UNION ALL SELECT seq FROM blackboard WHERE run_id = $run_id
+        UNION ALL SELECT seq FROM _mutations WHERE run_id = $run_id"""
+    if extent.events and extent.last_seq == extent.events - 1:
+        (same,) = one_row(
+            con,
+            f"""SELECT (SELECT sum(hash(seq)) FROM ({seqs}))
+                = (SELECT sum(hash(range)) FROM range($n))""",
+            {**params, "n": extent.events},
+        )
+        if same:
+            return
+    twice = first_row(con, f"SELECT seq FROM ({seqs}) GROUP BY seq HAVING count(*) > 1", params)
+    if twice is not None:
+        raise RecordingError(f"{name}: two events have seq {twice[0]}")
 
 
 def _counts(con: duckdb.DuckDBPyConnection, run_id: str) -> tuple[int, int, int]:
