@@ -4,7 +4,8 @@
 nothing that the events do not hold: each node's status; when each node last left IDLE
 (the start of its current activation); when each node last failed; how many failed
 attempts each RetryUntilSuccessful has made in its current run (BT.CPP's ``try_count``:
-its child's failures, reset when the retry completes or is halted); the last execution
+its child's failures, reset when the retry completes or is halted) and likewise each
+Nav2 RecoveryNode (its first child's failures); the last execution
 node to change status; the blackboard per scope; and, through ``TreeMutation`` events,
 the shape of the tree.
 
@@ -33,6 +34,8 @@ from btlog.status import FAILURE, IDLE, RUNNING, SUCCESS, Status
 from btlog.tree.model import EXECUTION_KINDS, Tree, link_nodes
 
 RETRY_TYPE = "RetryUntilSuccessful"
+#: Nav2's RecoveryNode: a handler that falls back to its recovery child, then retries.
+RECOVERY_TYPE = "RecoveryNode"
 
 
 @dataclass
@@ -108,9 +111,13 @@ class StateProjection(Subscriber):
         self._retry_parent = {
             n.uid: n.parent.uid
             for n in self.tree
-            if n.parent is not None and n.parent.type == RETRY_TYPE
+            if n.parent is not None
+            and (
+                n.parent.type == RETRY_TYPE
+                or (n.parent.type == RECOVERY_TYPE and n.parent.children[0] is n)
+            )
         }
-        self._retries = {n.uid for n in self.tree if n.type == RETRY_TYPE}
+        self._retries = {n.uid for n in self.tree if n.type in (RETRY_TYPE, RECOVERY_TYPE)}
 
     # -- the fold ----------------------------------------------------------------------
     def on_status(

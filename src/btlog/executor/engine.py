@@ -25,12 +25,20 @@ from btlog.executor.blackboard import UNSET, Blackboard
 from btlog.executor.clock import SimClock, WallClock
 from btlog.executor.controls import CONTROLS
 from btlog.executor.decorators import DECORATORS
+from btlog.executor.nav2_controls import NAV2_CONTROLS
+from btlog.executor.nav2_decorators import NAV2_DECORATORS
 from btlog.status import FAILURE, IDLE, RUNNING, SUCCESS, Status
 from btlog.tree.model import SUBTREE, Node, Tree, blackboard_key
 from btlog.tree.ports import parse_literal
 from btlog.tree.registry import Registry
 
-BUILTIN_BEHAVIORS: dict[str, type[Behavior]] = {**CONTROLS, **DECORATORS, **ACTIONS}
+BUILTIN_BEHAVIORS: dict[str, type[Behavior]] = {
+    **CONTROLS,
+    **DECORATORS,
+    **NAV2_CONTROLS,
+    **NAV2_DECORATORS,
+    **ACTIONS,
+}
 
 
 class Executor:

@@ -9,6 +9,11 @@ Walking up from the current node to its subgoal, two kinds of node handle failur
   for attempt {k} to {d(named ancestor of the retry)}. I could not {d(named ancestor of
   the leaf)} because {d(leaf)} failed.``
 
+Nav2's RecoveryNode is both: once its first child failed in its current activation it
+falls back (the Fallback sentence, naming the RecoveryNode), and while its first child
+is retried after a recovery it is retrying (the retry sentence, for the RecoveryNode
+itself, which Nav2 trees name after what it protects).
+
 When both apply the retry sentence comes first. "The failed leaf" is read from the order
 of events: the execution node inside the failed branch whose FAILURE is the most recent
 since the handler's activation began, so a failure of an earlier attempt is never
@@ -17,10 +22,12 @@ blamed for a later one.
 
 from __future__ import annotations
 
-from btlog.state import RETRY_TYPE, State
+from collections.abc import Iterator
+
+from btlog.state import RECOVERY_TYPE, RETRY_TYPE, State
 from btlog.tree.model import SUBTREE, Node
 
-FALLBACK_TYPES = ("Fallback", "ReactiveFallback")
+FALLBACK_TYPES = ("Fallback", "ReactiveFallback", RECOVERY_TYPE)
 NOTHING_WRONG = "Nothing went wrong."
 
 
@@ -59,7 +66,7 @@ def _retry_attempt(retry: Node, state: State) -> str | None:
     attempts = state.retry_attempts.get(retry.uid, 0)
     if attempts <= 0:
         return None
-    target = _named_ancestor(retry)
+    target = retry if retry.type == RECOVERY_TYPE else _named_ancestor(retry)
     if target is None:
         return None
     return f"I am retrying for attempt {attempts} to {target.description}."
@@ -82,27 +89,26 @@ def what_went_wrong(node: Node | None, state: State) -> str:
     """Q6 for one current node (Algorithm 7)."""
     if node is None:
         return NOTHING_WRONG
-    ancestor = node.parent
+    child, ancestor = node, node.parent
     while ancestor is not None and ancestor.kind != SUBTREE:
         if ancestor.type in FALLBACK_TYPES:
             sentence = _fallback_sentence(ancestor, state)
             if sentence is not None:
-                retries = [
-                    _retry_attempt(a, state)
-                    for a in _up_to_subgoal(ancestor)
-                    if a.type == RETRY_TYPE
-                ]
+                retries = [_retry_attempt(a, state) for a in _retrying(ancestor, child)]
                 return " ".join([*(r for r in retries if r), sentence])
         elif ancestor.type == RETRY_TYPE:
             sentence = _retry_sentence(ancestor, state)
             if sentence is not None:
                 return sentence
-        ancestor = ancestor.parent
+        child, ancestor = ancestor, ancestor.parent
     return NOTHING_WRONG
 
 
-def _up_to_subgoal(node: Node):
-    ancestor = node.parent
-    while ancestor is not None and ancestor.kind != SUBTREE:
-        yield ancestor
-        ancestor = ancestor.parent
+def _retrying(node: Node, via: Node) -> Iterator[Node]:
+    """The retrying handlers from ``node`` up to the subgoal, reached from ``node``'s child
+    ``via``: every RetryUntilSuccessful, and a RecoveryNode when reached through its
+    first child (the one it retries)."""
+    while node is not None and node.kind != SUBTREE:
+        if node.type == RETRY_TYPE or (node.type == RECOVERY_TYPE and node.children[0] is via):
+            yield node
+        via, node = node, node.parent

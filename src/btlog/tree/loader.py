@@ -67,7 +67,12 @@ MODEL_KINDS = {
 }
 #: Built-in nodes whose port holds a script, checked when the tree is loaded.
 SCRIPT_PORTS = {"Script": "code", "ScriptCondition": "code", "Precondition": "if"}
-MODEL_PORT_TAGS = {"input_port": "input", "output_port": "output", "inout_port": "inout"}
+MODEL_PORT_TAGS = {
+    "input_port": "input",
+    "output_port": "output",
+    "inout_port": "inout",
+    "bidirectional_port": "inout",  # Nav2's nav2_tree_nodes.xml spelling
+}
 
 
 class TreeError(ValueError):

@@ -130,7 +130,79 @@ def _builtins() -> dict[str, NodeType]:
         NodeType("UnsetBlackboard", ACTION, {"key": _in()}),
         NodeType("Sleep", ACTION, {"msec": _in("int")}),
     ]
-    return {t.id: t for t in types}
+    return {t.id: t for t in [*types, *_nav2_builtins()]}
+
+
+def _nav2_builtins() -> list[NodeType]:
+    """Nav2's control nodes and decorators (nav2_behavior_tree's plugins) with their ports
+    and defaults as Nav2 declares them; goals, poses and paths are JSON-like values."""
+    many = (1, None)
+    one = (1, 1)
+    goal_ports = {"goal": _in("any"), "goals": _in("any")}
+    return [
+        NodeType("RecoveryNode", CONTROL, {"number_of_retries": _in("int", "1")}, children=(2, 2)),
+        NodeType("PipelineSequence", CONTROL, children=many),
+        NodeType("RoundRobin", CONTROL, {"wrap_around": _in("bool", "false")}, children=many),
+        NodeType("NonblockingSequence", CONTROL, children=many),
+        NodeType(
+            "PersistentSequence",
+            CONTROL,
+            {"current_child_idx": PortSpec(INOUT, "int")},
+            children=many,
+        ),
+        NodeType(
+            "PauseResumeController",
+            CONTROL,
+            {"pause_service_name": _in(), "resume_service_name": _in()},
+            children=(1, 4),
+        ),
+        NodeType("RateController", DECORATOR, {"hz": _in("float", "10.0")}, children=one),
+        NodeType(
+            "DistanceController",
+            DECORATOR,
+            {
+                "distance": _in("float", "1.0"),
+                "global_frame": _in(),
+                "robot_base_frame": _in(),
+            },
+            children=one,
+        ),
+        NodeType(
+            "SpeedController",
+            DECORATOR,
+            {
+                "min_rate": _in("float", "0.1"),
+                "max_rate": _in("float", "1.0"),
+                "min_speed": _in("float", "0.0"),
+                "max_speed": _in("float", "0.5"),
+                **goal_ports,
+            },
+            children=one,
+        ),
+        NodeType("GoalUpdatedController", DECORATOR, goal_ports, children=one),
+        NodeType(
+            "GoalUpdater",
+            DECORATOR,
+            {
+                "input_goal": _in("any"),
+                "input_goals": _in("any"),
+                "output_goal": PortSpec(OUTPUT, "any"),
+                "output_goals": PortSpec(OUTPUT, "any"),
+            },
+            children=one,
+        ),
+        NodeType("SingleTrigger", DECORATOR, children=one),
+        NodeType(
+            "PathLongerOnApproach",
+            DECORATOR,
+            {
+                "path": _in("any"),
+                "prox_len": _in("float", "3.0"),
+                "length_factor": _in("float", "2.0"),
+            },
+            children=one,
+        ),
+    ]
 
 
 BUILTIN_TYPES: Mapping[str, NodeType] = _builtins()
