@@ -195,8 +195,10 @@ def test_pipeline_sequence_refuses_an_idle_child() -> None:
         h.tick()
 
 
-def test_pipeline_sequence_failure_halts_everything() -> None:
-    h = pipeline()
+@pytest.mark.parametrize("control", ["PipelineSequence", "NonblockingSequence"])
+def test_sequence_failure_halts_everything(control: str) -> None:
+    """test_pipeline_sequence.cpp and test_nonblocking_sequence.cpp share these facts."""
+    h = Harness(f"<{control}>{dummies('a', 'b', 'c')}</{control}>")
     for before, failing in [({}, "a"), ({"a": SUCCESS}, "b"), ({"a": SUCCESS, "b": SUCCESS}, "c")]:
         h.set(**before, **{failing: FAILURE})
         assert h.tick() is FAILURE
@@ -311,19 +313,6 @@ def test_round_robin_wrap_around_defaults_to_false() -> None:
 def nonblocking() -> Harness:
     """A NonblockingSequence over three Dummy children."""
     return Harness(f"<NonblockingSequence>{dummies('a', 'b', 'c')}</NonblockingSequence>")
-
-
-def test_nonblocking_sequence_failure() -> None:
-    h = nonblocking()
-    for before, failing in [({}, "a"), ({"a": SUCCESS}, "b"), ({"a": SUCCESS, "b": SUCCESS}, "c")]:
-        h.set(**before, **{failing: FAILURE})
-        assert h.tick() is FAILURE
-        assert h.statuses("a", "b", "c") == [IDLE, IDLE, IDLE]
-    h.set(a=SUCCESS, b=SUCCESS, c=RUNNING)
-    assert h.tick() is RUNNING
-    h.set(a=FAILURE)
-    assert h.tick() is FAILURE
-    assert h.statuses("a", "b", "c") == [IDLE, IDLE, IDLE]
 
 
 def test_nonblocking_sequence_ticks_every_child_every_tick() -> None:

@@ -108,7 +108,10 @@ def _retrying(node: Node, via: Node) -> Iterator[Node]:
     """The retrying handlers from ``node`` up to the subgoal, reached from ``node``'s child
     ``via``: every RetryUntilSuccessful, and a RecoveryNode when reached through its
     first child (the one it retries)."""
-    while node is not None and node.kind != SUBTREE:
-        if node.type == RETRY_TYPE or (node.type == RECOVERY_TYPE and node.children[0] is via):
-            yield node
-        via, node = node, node.parent
+    current: Node | None = node
+    while current is not None and current.kind != SUBTREE:
+        if current.type == RETRY_TYPE or (
+            current.type == RECOVERY_TYPE and current.children[0] is via
+        ):
+            yield current
+        via, current = current, current.parent
