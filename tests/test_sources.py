@@ -27,18 +27,18 @@ KITTING_RUN = ROOT / "recordings" / "kitting-look-at-chuck-fails.mcap"
 ROBOT_XML = """<root BTCPP_format="4" main_tree_to_execute="Main">
   <BehaviorTree ID="Main">
     <Sequence name="deliver">
-      <GoalUpdater name="update goal"><ComputePath name="plan"/></GoalUpdater>
-      <PipelineSequence name="follow">
+      <GoalFilter name="update goal"><ComputePath name="plan"/></GoalFilter>
+      <PipelineStep name="follow">
         <IsBatteryLow name="battery ok?"/>
         <FollowPath name="drive"/>
-      </PipelineSequence>
+      </PipelineStep>
     </Sequence>
   </BehaviorTree>
 </root>"""
 
 ROBOT_MODEL = """<root BTCPP_format="4"><TreeNodesModel>
-  <Decorator ID="GoalUpdater"><input_port name="input_goal"/></Decorator>
-  <Control ID="PipelineSequence"/>
+  <Decorator ID="GoalFilter"><input_port name="input_goal"/></Decorator>
+  <Control ID="PipelineStep"/>
   <Condition ID="IsBatteryLow"/>
   <Action ID="ComputePath"><output_port name="path"/></Action>
 </TreeNodesModel></root>"""
@@ -59,7 +59,7 @@ def _renumbered(rows: list[tuple]) -> list[tuple]:
 
 # -- the loader's import mode --------------------------------------------------------------
 def test_unknown_types_are_refused_unless_importing() -> None:
-    with pytest.raises(TreeError, match="GoalUpdater"):
+    with pytest.raises(TreeError, match="GoalFilter"):
         load_tree_text(ROBOT_XML)
     tree = load_tree_text(ROBOT_XML, accept_unknown=True)
     kinds = {n.name: n.kind for n in tree}
