@@ -40,6 +40,7 @@ from typing import Any
 
 import yaml
 
+from btlog import limits
 from btlog.explain.behaviours import executed_actions
 from btlog.explain.divergence import (
     Divergence,
@@ -226,10 +227,10 @@ def load_expectations(path: str | os.PathLike, partial: bool = False) -> Expecta
     """Read and check an expectations file (YAML); ``ExpectationError`` in one line."""
     name = os.fspath(path)
     try:
-        text = Path(name).read_text(encoding="utf-8")
+        text = limits.read_bounded(name).decode("utf-8")
     except FileNotFoundError:
         raise ExpectationError(f"{name}: no such expectations file") from None
-    except (OSError, UnicodeDecodeError) as error:
+    except (OSError, UnicodeDecodeError, limits.LimitError) as error:
         raise ExpectationError(f"{name}: cannot read: {error}") from None
     try:
         data = yaml.safe_load(text)

@@ -26,6 +26,7 @@ from typing import Any
 
 import yaml
 
+from btlog import limits
 from btlog.executor.actions import StatefulAction
 from btlog.executor.behavior import Runtime
 from btlog.executor.blackboard import Blackboard
@@ -151,8 +152,8 @@ class Outcomes:
     def load(cls, path: str | Path) -> Outcomes:
         """Read an outcomes file (YAML or JSON)."""
         try:
-            text = Path(path).read_text(encoding="utf-8")
-        except (OSError, UnicodeDecodeError) as error:
+            text = limits.read_bounded(path).decode("utf-8")
+        except (OSError, UnicodeDecodeError, limits.LimitError) as error:
             raise OutcomesError(f"{path}: cannot read the outcomes file: {error}") from None
         try:
             data = json.loads(text) if str(path).endswith(".json") else yaml.safe_load(text)

@@ -16,7 +16,9 @@ too: each subtree instance is its own ``<BehaviorTree _fullpath=…>``, matched 
 ``<SubTree _fullpath=…>``, and a SubTree's name is the last part of that path.
 
 XML is untrusted input: entities are not resolved, DTDs and network access are refused,
-files are bounded in size, and every error names the file, the line and what is wrong.
+files are bounded in size (checked before reading), the tree is bounded in nodes and depth
+once its SubTrees are expanded (checked before expanding them), and every error names the
+file, the line and what is wrong. The bounds are in ``btlog.limits``.
 """
 
 from __future__ import annotations
@@ -27,6 +29,7 @@ from pathlib import Path
 
 from lxml import etree
 
+from btlog import limits
 from btlog.tree.model import (
     ACTION,
     CONDITION,
@@ -48,7 +51,6 @@ from btlog.tree.registry import (
     leaf_kind,
 )
 
-MAX_XML_BYTES = 8 * 1024 * 1024
 MAX_INCLUDE_DEPTH = 16
 GENERIC_TAGS = {
     "Action": ACTION,
@@ -112,9 +114,11 @@ def _parser() -> etree.XMLParser:
 
 
 def parse_xml(data: bytes, file: str) -> etree._Element:
-    """Parse untrusted XML bytes safely; a DTD or entity declaration is refused."""
-    if len(data) > MAX_XML_BYTES:
-        raise TreeError(f"file is larger than {MAX_XML_BYTES} bytes", file)
+    """Parse untrusted XML bytes safely; a DTD or entity declaration is refused, and so
+    is a file over the size limit or an element with too many attributes."""
+    limit = limits.current().max_file_bytes
+    if len(data) > limit:
+        raise TreeError(f"file is larger than {limit} bytes (--max-file-size)", file)
     try:
         document = etree.fromstring(data, _parser()).getroottree()
     except etree.XMLSyntaxError as error:
@@ -123,14 +127,25 @@ def parse_xml(data: bytes, file: str) -> etree._Element:
         raise TreeError(f"malformed XML: {message}", file, line) from None
     if document.docinfo.doctype or document.docinfo.internalDTD is not None:
         raise TreeError("DOCTYPE declarations are not allowed", file, 1)
-    return document.getroot()
+    root = document.getroot()
+    for element in root.iter():
+        # lxml reads an element's attribute values in quadratic time: bound their count.
+        if len(element.attrib) > limits.MAX_ATTRIBUTES:
+            raise TreeError(
+                f"an element has more than {limits.MAX_ATTRIBUTES} attributes",
+                file,
+                element.sourceline,
+            )
+    return root
 
 
 def _read_bytes(source: str | os.PathLike) -> bytes:
     try:
-        return Path(source).read_bytes()
+        return limits.read_bounded(source)
     except OSError as error:
         raise TreeError(f"cannot read the file: {error.strerror}", str(source)) from None
+    except limits.LimitError as error:
+        raise TreeError(str(error), str(source)) from None
 
 
 def load_tree(
@@ -184,6 +199,7 @@ class _Loader:
         self.instances: dict[str, _Definition] = {}
         self.format = 4
         self.uid = 0
+        self.max_nodes = limits.MAX_NODES
         self.tree: Tree | None = None
 
     # -- documents ---------------------------------------------------------------------
@@ -205,8 +221,16 @@ class _Loader:
         if main not in self.definitions:
             raise TreeError(f"main tree {main!r} is not defined", file, first.root.sourceline)
         definition = self.definitions[main]
+        self.max_nodes = limits.current().max_nodes
+        if _expanded_size(self.definitions, main, self.max_nodes) > self.max_nodes:
+            raise TreeError(
+                f"tree {main!r} expands to more than {self.max_nodes} nodes once its "
+                "SubTrees are expanded (--max-nodes)",
+                definition.file,
+                definition.element.sourceline,
+            )
         root = self._build_tree_root(
-            main, definition, parent=None, scope="", prefix="", ancestors=(main,)
+            main, definition, parent=None, scope="", prefix="", ancestors=(main,), depth=0
         )
         return Tree(
             root=root, name=main, format=self.format, files=[d.file for d in self.documents]
@@ -282,10 +306,14 @@ class _Loader:
                 f"include cycle or nesting too deep at {target!r}", file, element.sourceline
             )
         try:
-            data = path.read_bytes()
+            data = limits.read_bounded(path)
         except OSError as error:
             raise TreeError(
                 f"cannot read included file {target!r}: {error.strerror}", file, element.sourceline
+            ) from None
+        except limits.LimitError as error:
+            raise TreeError(
+                f"included file {target!r}: {error}", file, element.sourceline
             ) from None
         self._read_document(data, str(path), path.parent, depth + 1, seen)
 
@@ -330,7 +358,15 @@ class _Loader:
                 )
 
     # -- nodes -------------------------------------------------------------------------
-    def _next_uid(self) -> int:
+    def _next_uid(self, file: str, line: int, depth: int) -> int:
+        if depth > limits.MAX_DEPTH:
+            raise TreeError(
+                f"the tree is deeper than {limits.MAX_DEPTH} levels once its SubTrees are expanded",
+                file,
+                line,
+            )
+        if self.uid >= self.max_nodes:
+            raise TreeError(f"the tree has more than {self.max_nodes} nodes (--max-nodes)", file)
         self.uid += 1
         return self.uid
 
@@ -342,9 +378,10 @@ class _Loader:
         scope: str,
         prefix: str,
         ancestors: tuple[str, ...],
+        depth: int,
     ) -> Node:
         element = next(c for c in definition.element if isinstance(c.tag, str))
-        return self._build(element, definition.file, parent, scope, prefix, ancestors)
+        return self._build(element, definition.file, parent, scope, prefix, ancestors, depth)
 
     def _build(
         self,
@@ -354,12 +391,13 @@ class _Loader:
         scope: str,
         prefix: str,
         ancestors: tuple[str, ...],
+        depth: int,
     ) -> Node:
         line = element.sourceline or 0
         tag = element.tag
         children = [c for c in element if isinstance(c.tag, str)]
         if tag in SUBTREE_TAGS:
-            return self._build_subtree(element, file, parent, scope, prefix, ancestors)
+            return self._build_subtree(element, file, parent, scope, prefix, ancestors, depth)
         if tag in GENERIC_TAGS:
             type_id = element.get("ID")
             if not type_id:
@@ -403,7 +441,7 @@ class _Loader:
             raise TreeError(
                 f"{type_id} must have {expected} children, found {len(children)}", file, line
             )
-        uid = self._next_uid()
+        uid = self._next_uid(file, line, depth)
         name = element.get("name", type_id)
         node = Node(
             uid=uid,
@@ -418,7 +456,9 @@ class _Loader:
         node.path = prefix + name + (f"::{uid}" if name == type_id else "")
         node.ports, node.attributes = self._ports(element, node_type, strict, file, line)
         for child in children:
-            node.children.append(self._build(child, file, node, scope, prefix, ancestors))
+            node.children.append(
+                self._build(child, file, node, scope, prefix, ancestors, depth + 1)
+            )
         return node
 
     def _ports(
@@ -456,6 +496,7 @@ class _Loader:
         scope: str,
         prefix: str,
         ancestors: tuple[str, ...],
+        depth: int,
     ) -> Node:
         line = element.sourceline or 0
         subtree_id = element.get("ID")
@@ -469,7 +510,7 @@ class _Loader:
             chain = " -> ".join((*ancestors[ancestors.index(subtree_id) :], subtree_id))
             raise TreeError(f"subtree cycle: {chain}", file, line)
         v3_plain = self.format == 3 and element.tag == "SubTree"
-        uid = self._next_uid()
+        uid = self._next_uid(file, line, depth)
         fullpath = element.get("_fullpath")
         given_name = element.get("name") or _name_from_fullpath(fullpath, subtree_id, uid)
         name = subtree_id if v3_plain else given_name or subtree_id
@@ -521,6 +562,7 @@ class _Loader:
             inner,
             inner + "/",
             (*ancestors, subtree_id),
+            depth + 1,
         )
         node.children.append(child)
         return node
@@ -575,6 +617,37 @@ def _name_from_fullpath(fullpath: str | None, subtree_id: str, uid: int) -> str 
         return None
     last = fullpath.rsplit("/", 1)[-1]
     return None if last == f"{subtree_id}::{uid}" else last
+
+
+def _expanded_size(definitions: dict[str, _Definition], main: str, cap: int) -> int:
+    """How many nodes tree ``main`` has once every SubTree is expanded (capped just above
+    ``cap``), counted per definition without expanding anything, so that a SubTree bomb
+    of a few KB is refused at once. Cycles count nothing here (the build reports them)."""
+    own: dict[str, int] = {}
+    calls: dict[str, list[str]] = {}
+    for tree_id, definition in definitions.items():
+        elements = [e for e in definition.element.iter() if isinstance(e.tag, str)][1:]
+        own[tree_id] = len(elements)
+        calls[tree_id] = [
+            e.get("ID", "")
+            for e in elements
+            if e.tag in SUBTREE_TAGS and e.get("ID", "") in definitions
+        ]
+    sizes: dict[str, int] = {}
+    path = {main}
+    stack = [(main, iter(calls[main]))]
+    while stack:  # depth-first, post-order, without recursion
+        tree_id, pending = stack[-1]
+        called = next((c for c in pending if c not in sizes and c not in path), None)
+        if called is not None:
+            path.add(called)
+            stack.append((called, iter(calls[called])))
+            continue
+        stack.pop()
+        path.discard(tree_id)
+        total = own[tree_id] + sum(sizes.get(c, 0) for c in calls[tree_id])
+        sizes[tree_id] = min(total, cap + 1)
+    return sizes[main]
 
 
 def _special_attribute(

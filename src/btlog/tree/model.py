@@ -108,12 +108,13 @@ class Node:
             yield node
             stack.extend(reversed(node.children))
 
-    def describe(self) -> dict:
-        """The node as a JSON-ready dict (the ``/btlog/tree`` node record)."""
+    def describe(self, idx: int | None = None) -> dict:
+        """The node as a JSON-ready dict (the ``/btlog/tree`` node record); ``idx``, its
+        position among its siblings, is looked up when not given."""
         return {
             "uid": self.uid,
             "parent_uid": None if self.parent is None else self.parent.uid,
-            "idx": self.index,
+            "idx": self.index if idx is None else idx,
             "kind": self.kind,
             "type": self.type,
             "name": self.name,
@@ -213,8 +214,17 @@ class Tree:
         return {
             "tree_name": self.name,
             "format": self.format,
-            "nodes": [n.describe() for n in self],
+            "nodes": [node.describe(idx) for node, idx in self.indexed()],
         }
+
+    def indexed(self) -> Iterator[tuple[Node, int]]:
+        """Every node with its position among its siblings, in depth-first pre-order
+        (linear: no sibling lists are searched)."""
+        stack = [(self.root, 0)]
+        while stack:
+            node, idx = stack.pop()
+            yield node, idx
+            stack.extend(reversed(list(zip(node.children, range(len(node.children))))))
 
     @classmethod
     def from_description(cls, message: dict) -> Tree:

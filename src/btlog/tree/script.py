@@ -9,6 +9,10 @@ decimals, hex), strings in single or double quotes, ``true``/``false``, and blac
 keys (``@key`` for the root blackboard). Scripts are compiled once into closures.
 
 A script runs in an environment with ``get(key)``, ``set(key, value)``, ``exists(key)``.
+
+Scripts come from untrusted XML, so they are bounded (``btlog.limits``): the code's
+length and nesting when compiled, and while running the length of a string built with
+``..`` and integers to BT.CPP's 64 bits; crossing a bound is a ``ScriptError``.
 """
 
 from __future__ import annotations
@@ -18,6 +22,8 @@ import re
 from collections.abc import Callable
 from functools import lru_cache
 from typing import Any, Protocol
+
+from btlog import limits
 
 
 class ScriptError(ValueError):
@@ -44,6 +50,7 @@ _TOKEN = re.compile(
 )
 
 _WORD_OPS = {"and": "&&", "or": "||", "not": "!"}
+_INT64 = 2**63
 Expr = Callable[[Environment], Any]
 
 
@@ -118,16 +125,31 @@ def _divide(a: Any, b: Any) -> Any:
     return a / b
 
 
+def _bounded(value: Any) -> Any:
+    """An arithmetic result, refused when an integer leaves BT.CPP's 64 bits (Python's
+    integers would otherwise grow without bound)."""
+    if isinstance(value, int) and not -_INT64 <= value < _INT64:
+        raise ScriptError("integer overflow (scripts compute in 64 bits)")
+    return value
+
+
 def _add(a: Any, b: Any) -> Any:
-    return _to_number(a) + _to_number(b)
+    return _bounded(_to_number(a) + _to_number(b))
+
+
+def _concatenate(a: Any, b: Any) -> str:
+    left, right = _text(a), _text(b)
+    if len(left) + len(right) > limits.MAX_SCRIPT_STRING:
+        raise ScriptError(f"a string longer than {limits.MAX_SCRIPT_STRING} characters")
+    return left + right
 
 
 _BINARY: dict[str, Callable[[Any, Any], Any]] = {
     "+": _add,
-    "-": lambda a, b: _to_number(a) - _to_number(b),
-    "*": lambda a, b: _to_number(a) * _to_number(b),
+    "-": lambda a, b: _bounded(_to_number(a) - _to_number(b)),
+    "*": lambda a, b: _bounded(_to_number(a) * _to_number(b)),
     "/": _divide,
-    "..": lambda a, b: _text(a) + _text(b),
+    "..": _concatenate,
     "==": _equal,
     "!=": lambda a, b: not _equal(a, b),
     "<": _compare("<"),
@@ -170,8 +192,17 @@ def truthy(value: Any) -> bool:
 
 class _Parser:
     def __init__(self, code: str) -> None:
+        if len(code) > limits.MAX_SCRIPT_CODE:
+            raise ScriptError(f"the script is longer than {limits.MAX_SCRIPT_CODE} characters")
         self.tokens = _tokenize(code)
         self.pos = 0
+        self.nesting = 0
+
+    def nest(self, step: int) -> None:
+        """Enter (+1) or leave (-1) a parenthesis, unary operator or ternary branch."""
+        self.nesting += step
+        if self.nesting > limits.MAX_SCRIPT_NESTING:
+            raise ScriptError(f"nested more than {limits.MAX_SCRIPT_NESTING} levels deep")
 
     def peek(self) -> tuple[str, str]:
         return self.tokens[self.pos]
@@ -212,9 +243,11 @@ class _Parser:
         if self.peek()[1] != "?":
             return condition
         self.take("?")
+        self.nest(1)
         then = self.ternary()
         self.take(":")
         otherwise = self.ternary()
+        self.nest(-1)
         return lambda env: then(env) if truthy(condition(env)) else otherwise(env)
 
     def binary(self, level: int) -> Expr:
@@ -252,9 +285,11 @@ class _Parser:
         kind, text = self.peek()
         if kind == "op" and text in ("-", "!", "~", "+"):
             self.take()
+            self.nest(1)
             operand = self.unary()
+            self.nest(-1)
             if text == "-":
-                return lambda env: -_to_number(operand(env))
+                return lambda env: _bounded(-_to_number(operand(env)))
             if text == "!":
                 return lambda env: not truthy(operand(env))
             if text == "~":
@@ -276,8 +311,10 @@ class _Parser:
                 return lambda env: flag
             return lambda env: _read(env, text)
         if text == "(":
+            self.nest(1)
             inner = self.ternary()
             self.take(")")
+            self.nest(-1)
             return inner
         raise ScriptError(f"unexpected {text or 'end of script'!r}")
 

@@ -1,0 +1,82 @@
+"""The bounds btlog puts on untrusted input, and the one bounded file read.
+
+Trees, outcomes and expectations files come from users and may be hostile: a file may be
+``/dev/zero``, a few KB of XML may expand (SubTree calling SubTree) to billions of nodes,
+a script may double a string forty times. Every such input is refused with one line
+naming the file as soon as a bound is crossed, before the memory or time is spent.
+
+The defaults are documented in the README's security notes; the commands that load trees
+take ``--max-nodes`` and ``--max-file-size`` to raise (or lower) the first two.
+"""
+
+from __future__ import annotations
+
+import os
+import stat
+from dataclasses import dataclass, replace
+
+#: Bytes of one tree, outcomes or expectations file (includes are counted one by one).
+MAX_FILE_BYTES = 8 * 1024 * 1024
+#: Nodes of a tree once every SubTree is expanded.
+MAX_NODES = 200_000
+#: Depth of a tree once every SubTree is expanded (the root has depth 0).
+MAX_DEPTH = 200
+#: Attributes on one XML element (lxml reads them in quadratic time).
+MAX_ATTRIBUTES = 1_000
+#: Characters of one string built by a script (``..``), and of one script's code.
+MAX_SCRIPT_STRING = 16 * 1024 * 1024
+MAX_SCRIPT_CODE = 64 * 1024
+#: Nesting of parentheses and unary operators in one script.
+MAX_SCRIPT_NESTING = 64
+
+
+class LimitError(ValueError):
+    """An input that crosses one of the bounds; ``str()`` is one line."""
+
+
+@dataclass(frozen=True)
+class Limits:
+    """The bounds that commands may override with flags."""
+
+    max_file_bytes: int = MAX_FILE_BYTES
+    max_nodes: int = MAX_NODES
+
+
+_current = Limits()
+
+
+def current() -> Limits:
+    """The limits in force (the defaults unless a command overrode them)."""
+    return _current
+
+
+def override(max_file_bytes: int | None = None, max_nodes: int | None = None) -> Limits:
+    """Set the limits for this process (the CLI's ``--max-file-size``/``--max-nodes``);
+    ``None`` keeps a limit as it is. Returns the limits now in force."""
+    global _current
+    for flag, value in (("--max-file-size", max_file_bytes), ("--max-nodes", max_nodes)):
+        if value is not None and value < 1:
+            raise LimitError(f"{flag} {value}: must be at least 1")
+    changes = {"max_file_bytes": max_file_bytes, "max_nodes": max_nodes}
+    _current = replace(_current, **{k: v for k, v in changes.items() if v is not None})
+    return _current
+
+
+def read_bounded(path: str | os.PathLike, limit: int | None = None) -> bytes:
+    """The bytes of a regular file of at most ``limit`` bytes (default: the current
+    ``max_file_bytes``). The size is checked with ``stat`` before reading and the read
+    itself stops one byte past the limit, so ``/dev/zero``, a FIFO or a file growing
+    while it is read is refused at once. Raises ``LimitError`` or ``OSError``."""
+    limit = current().max_file_bytes if limit is None else limit
+    # O_NONBLOCK: opening a FIFO must not wait for a writer; fstat then refuses it.
+    descriptor = os.open(path, os.O_RDONLY | getattr(os, "O_NONBLOCK", 0))
+    with open(descriptor, "rb") as file:
+        info = os.fstat(descriptor)
+        if not stat.S_ISREG(info.st_mode):
+            raise LimitError("not a regular file")
+        if info.st_size > limit:
+            raise LimitError(f"file is larger than {limit} bytes (--max-file-size)")
+        data = file.read(limit + 1)
+    if len(data) > limit:
+        raise LimitError(f"file is larger than {limit} bytes (--max-file-size)")
+    return data
