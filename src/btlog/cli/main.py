@@ -14,6 +14,7 @@ import traceback
 from collections.abc import Sequence
 
 from btlog import __version__
+from btlog.cli.limit_flags import add_limit_flags, apply_limit_flags
 
 EXIT_OK, EXIT_CHECK_FAILED, EXIT_BAD_INPUT = 0, 1, 2
 
@@ -47,6 +48,7 @@ def build_parser() -> argparse.ArgumentParser:
         description="Execute a tree and record every event to MCAP.",
     )
     run.add_argument("tree", metavar="TREE", help="BehaviorTree.CPP XML file")
+    add_limit_flags(run)
     run.add_argument(
         "--domain", default="scripted", help="simulated domain: scripted (default), kitting, taxi"
     )
@@ -147,11 +149,13 @@ def build_parser() -> argparse.ArgumentParser:
     diff = commands.add_parser("diff", help="divergence between two runs (or a run and a tree)")
     diff.add_argument("a", metavar="A", help="a recording")
     diff.add_argument("b", metavar="B", help="a recording, or a tree XML (its nominal run)")
+    add_limit_flags(diff)
     diff.add_argument("--json", action="store_true", help="JSON output")
     diff.add_argument("--plain", action="store_true", help="no colour")
 
     check = commands.add_parser("check", help="regression checks on stored runs")
     check.add_argument("runs", metavar="RUN", nargs="+")
+    add_limit_flags(check)
     check.add_argument("--expect", metavar="F", help="expectations file (YAML)")
     check.add_argument(
         "--rerun",
@@ -167,6 +171,7 @@ def build_parser() -> argparse.ArgumentParser:
 
     validate = commands.add_parser("validate", help="load and check a tree")
     validate.add_argument("tree", metavar="TREE")
+    add_limit_flags(validate)
     validate.add_argument("--json", action="store_true", help="JSON output")
 
     from btlog.cli import sources
@@ -217,6 +222,7 @@ def main(argv: Sequence[str] | None = None) -> int:
     except SystemExit as exit_:
         return int(exit_.code or 0)
     try:
+        apply_limit_flags(args)
         return int(_handlers()[args.command](args) or EXIT_OK)
     except KeyboardInterrupt:
         print("btlog: interrupted", file=sys.stderr)

@@ -224,7 +224,7 @@ class Tree:
         while stack:
             node, idx = stack.pop()
             yield node, idx
-            stack.extend(reversed(list(zip(node.children, range(len(node.children))))))
+            stack.extend((child, i) for i, child in reversed(list(enumerate(node.children))))
 
     @classmethod
     def from_description(cls, message: dict) -> Tree:
