@@ -10,6 +10,9 @@ has emitted the wake-up signal and the root is RUNNING) or ``"exactly_once"``
 (``Tree::tickExactlyOnce``). ``"file_log": PATH`` also records the run with BT.CPP's
 ``FileLogger2`` (a ``.btlog``, released before the process exits so its writer thread has
 written everything); ``"tick_sleep_ms": N`` sleeps between ticks (so ticks are apart in time).
+``"groot2_port": P`` serves the tree with a ``Groot2Publisher``; with ``"sync_dir": DIR`` the
+oracle creates DIR/ready once it serves, waits for DIR/go before the first tick, creates
+DIR/ran after the last, and waits for DIR/quit before it prints and exits.
 
 Output, one JSON object on stdout::
 
@@ -146,6 +149,8 @@ def run_case(
     tick_mode: str = "once",
     file_log: str | None = None,
     tick_sleep_ms: float = 0.0,
+    groot2_port: int | None = None,
+    sync_dir: str | None = None,
 ) -> dict[str, Any]:
     """Run ``xml`` in BT.CPP for at most ``max_ticks`` ticks; return the result dict.
 
@@ -190,6 +195,9 @@ def run_case(
         keep_alive += [factory, tree, logger]
         if file_log:
             file_logger.append(bt.FileLogger(tree, file_log))
+        if groot2_port:
+            keep_alive.append(bt.Groot2Publisher(tree, groot2_port))
+        _handshake(sync_dir, "ready", "go")
         tick_fn = tree.tick_exactly_once if tick_mode == "exactly_once" else tree.tick_once
         last = "IDLE"
         for tick in range(1, max_ticks + 1):
@@ -216,6 +224,7 @@ def run_case(
             except Exception as exc:
                 result["error"] = f"halt: {exc}"
             collect(capture.read_lines(), result["ticks"])
+        _handshake(sync_dir, "ran", "quit")
     finally:
         if file_logger:  # let its writer thread drain its queue, then release it
             time.sleep(0.05)
@@ -223,6 +232,17 @@ def run_case(
         collect(capture.restore(), result["ticks"])
         _KEEP.extend(keep_alive)
     return result
+
+
+def _handshake(sync_dir: str | None, done: str, then: str, timeout: float = 60.0) -> None:
+    """Create ``sync_dir/done``, then wait for ``sync_dir/then`` (no-op without a folder)."""
+    if not sync_dir:
+        return
+    with open(os.path.join(sync_dir, done), "w"):
+        pass
+    deadline = time.monotonic() + timeout
+    while not os.path.exists(os.path.join(sync_dir, then)) and time.monotonic() < deadline:
+        time.sleep(0.005)
 
 
 _KEEP: list[Any] = []  # trees are never destroyed: main() leaves with os._exit
@@ -258,6 +278,8 @@ def main() -> None:
         case.get("tick_mode", "once"),
         case.get("file_log"),
         float(case.get("tick_sleep_ms", 0.0)),
+        case.get("groot2_port"),
+        case.get("sync_dir"),
     )
     sys.stdout.write(json.dumps(result) + "\n")
     sys.stdout.flush()

@@ -197,6 +197,7 @@ def _handlers():
         "check": checks.check,
         "import": sources.import_,
         "export": sources.export,
+        "attach": sources.attach,
     }
 
 

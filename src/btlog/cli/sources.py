@@ -12,7 +12,7 @@ from btlog.tree.registry import Registry
 
 
 def add_parsers(commands: argparse._SubParsersAction) -> None:
-    """Add ``import`` and ``export`` to the command line."""
+    """Add ``import``, ``attach`` and ``export`` to the command line."""
     imp = commands.add_parser(
         "import",
         help="import a BT.CPP log (FileLogger2 .btlog, SqliteLogger .db3/.btdb)",
@@ -23,6 +23,30 @@ def add_parsers(commands: argparse._SubParsersAction) -> None:
     imp.add_argument("--tree", metavar="XML", help="the tree file (checked against the log's)")
     imp.add_argument("--session", metavar="N", type=int, help="SQLite: only this session")
     _add_model_and_gap(imp)
+
+    attach = commands.add_parser(
+        "attach",
+        help="record a running BT.CPP process live (Groot2 protocol)",
+        description="Record a BT.CPP process that runs a Groot2Publisher (or Nav2 with "
+        "enable_groot_monitoring) until --duration, or Ctrl-C.",
+    )
+    attach.add_argument("endpoint", metavar="tcp://HOST:PORT", help="the publisher's port")
+    attach.add_argument("-o", "--output", metavar="OUT", required=True, help="recording")
+    attach.add_argument("--duration", metavar="S", type=float, help="stop after S seconds")
+    attach.add_argument(
+        "--ask",
+        metavar="WHEN=QUESTION",
+        action="append",
+        default=[],
+        help='ask live, e.g. --ask "5s=What went wrong?"',
+    )
+    attach.add_argument(
+        "--blackboard", action="store_true", help="poll the blackboards, record changes"
+    )
+    attach.add_argument(
+        "--poll", metavar="S", type=float, default=0.01, help="seconds between polls (0.01)"
+    )
+    _add_model_and_gap(attach)
 
     export = commands.add_parser(
         "export",
@@ -121,4 +145,39 @@ def export(args: Namespace) -> int:
             file=sys.stderr,
         )
     print(f"{args.run} -> {result.path}: {result.transitions} transitions")
+    return 0
+
+
+def attach(args: Namespace) -> int:
+    """``btlog attach tcp://HOST:PORT -o OUT``: record until --duration or Ctrl-C."""
+    from btlog.explain.questions import Answer
+    from btlog.runner import LiveQuestion
+    from btlog.sources.builder import RecordingBuilder
+    from btlog.sources.groot2 import AttachOptions
+    from btlog.sources.groot2 import attach as record
+    from btlog.sources.live import LiveAnswers
+
+    if args.duration is not None and args.duration <= 0:
+        raise ValueError(f"--duration {args.duration}: must be > 0")
+    if not args.poll > 0:
+        raise ValueError(f"--poll {args.poll}: must be > 0")
+    questions = [LiveQuestion.parse(q) for q in args.ask]
+    options = AttachOptions(args.duration, args.poll, args.blackboard, tick_gap_ns=_gap_ns(args))
+
+    def printed(question: LiveQuestion, result: Answer) -> None:
+        print(f"[{question.when}] {question.question}\n  {result.text}", flush=True)
+
+    class Hooks(LiveAnswers):
+        def on_start(self, builder: RecordingBuilder) -> None:
+            super().on_start(builder)
+            print(f"attached to {args.endpoint} ({len(builder.tree)} nodes); Ctrl-C to stop")
+
+    result = record(
+        args.endpoint,
+        args.output,
+        options,
+        _registry(args),
+        Hooks(questions, printed),
+    )
+    _report(args.endpoint, result.build, "attach")
     return 0

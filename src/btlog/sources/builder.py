@@ -20,7 +20,7 @@ Ticks are inferred, because BT.CPP's loggers record transitions, not ticks. The 
 
 The tick's record runs from its first transition to its last; its root status is the
 root's result in that tick (RUNNING while it runs). Blackboard writes belong to the
-current tick (tick 0 before the first transition).
+current tick (tick 0 before the first transition) and do not count for the gaps.
 """
 
 from __future__ import annotations
@@ -33,7 +33,7 @@ from datetime import UTC, datetime
 from pathlib import Path
 from typing import Any
 
-from btlog.events import TickRecord, type_name
+from btlog.events import Subscriber, TickRecord, type_name
 from btlog.record.recorder import Recorder
 from btlog.status import FAILURE, IDLE, RUNNING, SUCCESS, Status
 from btlog.tree.model import Tree
@@ -88,7 +88,8 @@ class RecordingBuilder:
     Call ``transition`` (and ``write``) in the source's order, with times in ns since
     the run's start; ``close`` finishes the file and returns a ``BuildResult``. The
     file is crash-safe as ``btlog run``'s (flushed at least every ``flush_interval``
-    seconds of wall time, on tick boundaries or ``flush``). Unknown uids and statuses
+    seconds of wall time, on tick boundaries or ``flush``). ``subscribers`` (e.g. a live
+    ``StateProjection``) receive every event and tick after the recorder. Unknown uids and statuses
     raise ``SourceError``; times going backwards are clamped, with a warning.
     """
 
@@ -102,6 +103,7 @@ class RecordingBuilder:
         metadata: Mapping[str, Any] | None = None,
         tick_gap_ns: int = DEFAULT_TICK_GAP_NS,
         flush_interval: float = 1.0,
+        subscribers: Iterable[Subscriber] = (),
     ) -> None:
         self.tree = tree
         self.source = source
@@ -118,6 +120,7 @@ class RecordingBuilder:
         self._boundary = True
         self._root_done = False
         self._last_t = 0
+        self._last_transition_t = 0
         self._clamped = 0
         self._prev_mismatch = 0
         started = (started_at or datetime.now(UTC)).astimezone(UTC)
@@ -131,6 +134,21 @@ class RecordingBuilder:
             **(metadata or {}),
         }
         self.recorder = Recorder(output, tree, record, attachments, flush_interval=flush_interval)
+        self._subscribers: list[Subscriber] = [self.recorder, *subscribers]
+
+    def subscribe(self, subscriber: Subscriber) -> None:
+        """Deliver every later event and tick to ``subscriber`` too."""
+        self._subscribers.append(subscriber)
+
+    @property
+    def tick(self) -> int:
+        """The current (inferred) tick; 0 before the first transition."""
+        return self._tick
+
+    @property
+    def last_t_ns(self) -> int:
+        """The time of the last event so far."""
+        return self._last_t
 
     @property
     def seq(self) -> int:
@@ -155,10 +173,11 @@ class RecordingBuilder:
         self._status[uid] = status
         if uid == self._root:
             self._root_changed(status)
-        self.recorder.on_status(self._seq, t_ns, self._tick, uid, old, status)
+        for subscriber in self._subscribers:
+            subscriber.on_status(self._seq, t_ns, self._tick, uid, old, status)
         self._seq += 1
         self._transitions += 1
-        self._last_t = t_ns
+        self._last_t = self._last_transition_t = t_ns
 
     def write(
         self,
@@ -172,7 +191,8 @@ class RecordingBuilder:
         """Entry ``key`` of ``scope`` was set to ``value`` at ``t_ns`` (in the current tick)."""
         t_ns = self._clamp(t_ns)
         label = type_label or type_name(value)
-        self.recorder.on_write(self._seq, t_ns, self._tick, scope, key, value, label, writer_uid)
+        for subscriber in self._subscribers:
+            subscriber.on_write(self._seq, t_ns, self._tick, scope, key, value, label, writer_uid)
         self._seq += 1
         self._writes += 1
         self._last_t = t_ns
@@ -231,7 +251,7 @@ class RecordingBuilder:
                 return False  # the reset of a finished root ends its tick
         if self._root_done:
             return True
-        return t_ns - self._last_t > self.tick_gap_ns
+        return t_ns - self._last_transition_t > self.tick_gap_ns
 
     def _next_tick(self, t_ns: int) -> None:
         if self._tick > 0:
@@ -243,8 +263,10 @@ class RecordingBuilder:
         self._tick_result = self._status[self._root]
 
     def _end_tick(self) -> None:
-        record = TickRecord(self._tick, self._tick_start, self._last_t, self._tick_result)
-        self.recorder.on_tick(record)
+        end = self._last_transition_t
+        record = TickRecord(self._tick, self._tick_start, end, self._tick_result)
+        for subscriber in self._subscribers:
+            subscriber.on_tick(record)
 
     def _root_changed(self, status: Status) -> None:
         if status == IDLE:
