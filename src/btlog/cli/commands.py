@@ -142,16 +142,27 @@ def ask(args: Namespace) -> int:
 
 
 def explain(args: Namespace) -> int:
-    """``btlog explain``: Q1–Q6 at a moment."""
-    tree, state = _state(args.run, args.at)
+    """``btlog explain``: Q1–Q6 at a moment, and what the recording says is missing."""
+    database, run = _open_run(args.run)
+    try:
+        tree, state = run.state_at(args.at)
+        notes = [run.info.metadata["incomplete"]] if run.info.metadata.get("incomplete") else []
+    finally:
+        database.close()
     answers = explain_all(tree, state)
     if args.json:
         _print_json(
-            {"moment": _moment_json(state, args.at), "answers": [a.to_json() for a in answers]}
+            {
+                "moment": _moment_json(state, args.at),
+                "answers": [a.to_json() for a in answers],
+                "notes": notes,
+            }
         )
         return 0
     for result in answers:
         print(f"{result.question}\n  {result.text}")
+    for note in notes:
+        print(f"Note: {note}")
     return 0
 
 

@@ -6,6 +6,7 @@ import argparse
 import sys
 from argparse import Namespace
 from pathlib import Path
+from typing import Any
 
 from btlog.sources.builder import DEFAULT_TICK_GAP_NS, BuildResult
 from btlog.tree.registry import Registry
@@ -15,13 +16,15 @@ def add_parsers(commands: argparse._SubParsersAction) -> None:
     """Add ``import``, ``attach`` and ``export`` to the command line."""
     imp = commands.add_parser(
         "import",
-        help="import a BT.CPP log (FileLogger2 .btlog, SqliteLogger .db3/.btdb)",
-        description="Turn a BehaviorTree.CPP log into a btlog recording (format from content).",
+        help="import a BT.CPP log (FileLogger2 .btlog, SqliteLogger .db3/.btdb) or a Nav2 bag",
+        description="Turn a BehaviorTree.CPP log, or a Nav2 rosbag2 MCAP with "
+        "/behavior_tree_log, into btlog recordings (format from content).",
     )
-    imp.add_argument("file", metavar="FILE", help=".btlog, .db3 or .btdb file")
+    imp.add_argument("file", metavar="FILE", help=".btlog, .db3, .btdb or rosbag2 .mcap file")
     imp.add_argument("-o", "--output", metavar="OUT", help="recording to write (FILE.mcap)")
     imp.add_argument("--tree", metavar="XML", help="the tree file (checked against the log's)")
     imp.add_argument("--session", metavar="N", type=int, help="SQLite: only this session")
+    imp.add_argument("--goal", metavar="N", type=int, help="Nav2 bag: only goal N (from 1)")
     _add_model_and_gap(imp)
 
     attach = commands.add_parser(
@@ -50,12 +53,13 @@ def add_parsers(commands: argparse._SubParsersAction) -> None:
 
     export = commands.add_parser(
         "export",
-        help="write a recording in another tool's format (btlog: BT.CPP FileLogger2)",
-        description="Write a recording as a BT.CPP FileLogger2 .btlog, which Groot2 opens.",
+        help="write a recording in another tool's format (btlog: FileLogger2; nav2: ROS 2 MCAP)",
+        description="Write a recording as a BT.CPP FileLogger2 .btlog, which Groot2 opens, or "
+        "as a ROS 2 MCAP bag with Nav2's /behavior_tree_log (nav2), which Foxglove opens.",
     )
     export.add_argument("run", metavar="REC", help="a btlog recording")
-    export.add_argument("--to", choices=("btlog",), required=True, help="the format")
-    export.add_argument("output", metavar="OUT", help="file to write (OUT.btlog)")
+    export.add_argument("--to", choices=("btlog", "nav2"), required=True, help="the format")
+    export.add_argument("output", metavar="OUT", help="file to write (OUT.btlog or OUT.mcap)")
 
 
 def _add_model_and_gap(parser: argparse.ArgumentParser) -> None:
@@ -101,7 +105,17 @@ def import_(args: Namespace) -> int:
     kind = detect(args.file)
     registry, gap = _registry(args), _gap_ns(args)
     default = Path(args.output) if args.output else Path(Path(args.file).name).with_suffix(".mcap")
-    if kind == "btcpp-filelog2":
+    if args.goal is not None and kind != "rosbag2-mcap":
+        raise ValueError(f"{args.file}: --goal applies to Nav2 bags only")
+    if kind == "rosbag2-mcap":
+        from btlog.sources.nav2_rosbag import import_bag
+
+        if args.session is not None:
+            raise ValueError(f"{args.file}: --session applies to SQLite logs only")
+        if not args.output:
+            default = Path(f"{Path(args.file).stem}-btlog.mcap")
+        results = import_bag(args.file, default, args.tree, registry, args.goal, gap)
+    elif kind == "btcpp-filelog2":
         from btlog.sources.btcpp_filelog import import_filelog
 
         if args.session is not None:
@@ -127,24 +141,41 @@ def import_(args: Namespace) -> int:
     return 0
 
 
-def export(args: Namespace) -> int:
-    """``btlog export REC --to btlog OUT.btlog``."""
-    from btlog.record.reader import open_recording
-    from btlog.sinks.btcpp_filelog import export_filelog
+#: Per export format: the file suffix it needs and what its files cannot hold.
+_EXPORTS = {
+    "btlog": (".btlog", "Groot2 and BT.CPP expect", "FileLogger2 holds transitions only"),
+    "nav2": (".mcap", "a ROS 2 bag needs", "BehaviorTreeLog holds status changes only"),
+}
 
-    if Path(args.output).suffix != ".btlog":
-        raise ValueError(f"{args.output}: Groot2 and BT.CPP expect the suffix .btlog")
+
+def export(args: Namespace) -> int:
+    """``btlog export REC --to btlog OUT.btlog`` or ``--to nav2 OUT.mcap``."""
+    from btlog.record.reader import open_recording
+
+    suffix, expects, holds = _EXPORTS[args.to]
+    if Path(args.output).suffix != suffix:
+        raise ValueError(f"{args.output}: {expects} the suffix {suffix}")
+    if Path(args.output).resolve() == Path(args.run).resolve():
+        raise ValueError(f"{args.output}: would overwrite the recording being exported")
     recording = open_recording(args.run)
     for warning in recording.warnings:
         print(f"btlog export: warning: {warning}", file=sys.stderr)
-    result = export_filelog(recording, args.output)
+    if args.to == "nav2":
+        from btlog.sinks.nav2_rosbag import export_nav2
+
+        result: Any = export_nav2(recording, args.output)
+    else:
+        from btlog.sinks.btcpp_filelog import export_filelog
+
+        result = export_filelog(recording, args.output)
     if result.writes_left_out:
         print(
-            f"btlog export: note: {result.writes_left_out} blackboard writes left out "
-            "(FileLogger2 holds transitions only)",
+            f"btlog export: note: {result.writes_left_out} blackboard writes left out ({holds})",
             file=sys.stderr,
         )
-    print(f"{args.run} -> {result.path}: {result.transitions} transitions")
+    messages = getattr(result, "messages", None)
+    counted = f"{messages} messages, " if messages is not None else ""
+    print(f"{args.run} -> {result.path}: {counted}{result.transitions} transitions")
     return 0
 
 

@@ -8,7 +8,8 @@ small module of its own.
   with times, optional blackboard writes, and where it came from. BT.CPP's FileLogger2
   (``btcpp_filelog``) and SQLite logger (``btcpp_sqlite``) files are imported; a running
   BT.CPP process is recorded live through the Groot2 protocol (``groot2``).
-  ``btcpp_tree`` reads the tree XML BT.CPP writes for its loggers.
+  ``btcpp_tree`` reads the tree XML BT.CPP writes for its loggers. Nav2's
+  ``/behavior_tree_log`` is imported from rosbag2 MCAP files (``nav2_rosbag``).
 - Sinks write a btlog recording in another tool's format (``btlog.sources.sinks``):
   FileLogger2 for Groot2.
 
@@ -23,10 +24,14 @@ from btlog.sources.builder import SourceError
 
 FILELOG_MAGIC = b"BTCPP4-FileLogger2"
 SQLITE_MAGIC = b"SQLite format 3\x00"
+MCAP_MAGIC = b"\x89MCAP0\r\n"
 
 
 def detect(path: str | os.PathLike) -> str:
-    """``"btcpp-filelog2"`` or ``"btcpp-sqlite"`` from the file's first bytes."""
+    """``"btcpp-filelog2"``, ``"btcpp-sqlite"`` or ``"rosbag2-mcap"`` (an MCAP file or a
+    rosbag2 folder) from the file's first bytes."""
+    if os.path.isdir(path):
+        return "rosbag2-mcap"
     try:
         with open(path, "rb") as stream:
             head = stream.read(32)
@@ -36,7 +41,10 @@ def detect(path: str | os.PathLike) -> str:
         return "btcpp-filelog2"
     if head.startswith(SQLITE_MAGIC):
         return "btcpp-sqlite"
+    if head.startswith(MCAP_MAGIC):
+        return "rosbag2-mcap"
     raise SourceError(
-        f"{os.fspath(path)}: not a BT.CPP log (no 'BTCPP4-FileLogger2' magic, not SQLite); "
+        f"{os.fspath(path)}: not a BT.CPP log or a rosbag2 MCAP file (no 'BTCPP4-FileLogger2' "
+        "or MCAP magic, not SQLite); "
         f"first bytes {head[:18]!r}"
     )

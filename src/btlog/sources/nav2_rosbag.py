@@ -1,0 +1,314 @@
+"""Import Nav2 runs from a rosbag2 MCAP file, without ROS.
+
+Nav2's BT navigators publish ``/behavior_tree_log`` (``nav2_msgs/msg/BehaviorTreeLog``,
+CDR): once per tick of the BT loop, the status changes of that tick, each with its
+(wall-clock) time, node name, node uid (BT.CPP's creation order, the one btlog uses;
+bags from Nav2 versions before the field was added have none) and previous and current
+status. ``mcap-ros2-support`` decodes them from the schema stored in the bag.
+
+The bag holds no tree, so the tree comes from ``--tree`` (or from the tree XML topic a
+``btlog export --to nav2`` file carries). Log entries are matched to its nodes by uid,
+checked against the name, else by name, which must then be unique in the tree.
+
+Each goal is one recording: a goal starts when the tree's root leaves IDLE. Nav2 flushes
+its log only while the tree is RUNNING, so a goal's last transitions (its result, the
+root's reset) come with the next goal's first message, or never when the bag ends first.
+A goal whose root never completes is imported as it is, with the recording's metadata
+``incomplete`` saying so; nothing is invented.
+"""
+
+from __future__ import annotations
+
+import os
+from collections.abc import Iterator
+from dataclasses import dataclass, field
+from datetime import UTC, datetime
+from pathlib import Path
+
+from mcap.exceptions import McapError
+from mcap.reader import make_reader
+from mcap_ros2.decoder import DecoderFactory
+
+from btlog.sources.btcpp_tree import tree_from_file, tree_from_log_xml
+from btlog.sources.builder import (
+    DEFAULT_TICK_GAP_NS,
+    BuildResult,
+    RecordingBuilder,
+    Source,
+    SourceError,
+)
+from btlog.status import FAILURE, IDLE, SUCCESS, Status
+from btlog.tree.loader import TreeError, load_tree
+from btlog.tree.model import Tree
+from btlog.tree.registry import Registry
+
+FORMAT = "nav2-rosbag2"
+LOG_TOPIC = "/behavior_tree_log"
+LOG_TYPE = "nav2_msgs/msg/BehaviorTreeLog"
+#: The topic on which ``btlog export --to nav2`` writes the tree's XML.
+XML_TOPIC = "/behavior_tree_xml"
+XML_TYPE = "std_msgs/msg/String"
+STATUS_NAMES = frozenset(s.name for s in Status)
+INCOMPLETE = (
+    "the bag ends before this goal's result: Nav2 publishes /behavior_tree_log only "
+    "while the tree is RUNNING, so the goal's last transitions are missing (not invented)"
+)
+
+
+@dataclass(frozen=True)
+class LogEntry:
+    """One BehaviorTreeStatusChange: absolute time, node name, uid (None if the bag's
+    message type has none) and statuses."""
+
+    t_ns: int
+    name: str
+    uid: int | None
+    prev: Status
+    status: Status
+
+
+@dataclass
+class BagLog:
+    """The entries of ``/behavior_tree_log`` in order, and the tree XML if the bag has it."""
+
+    file: str
+    entries: list[LogEntry]
+    messages: int
+    tree_xml: bytes | None = None
+
+
+@dataclass
+class Goal:
+    """The entries of one goal (as uids of the tree) and whether its result is missing."""
+
+    index: int
+    entries: list[tuple[LogEntry, int]] = field(default_factory=list)
+    complete: bool = False
+
+
+def bag_file(path: str | os.PathLike) -> Path:
+    """The MCAP file of a bag: the file itself, or the one ``.mcap`` in a bag folder."""
+    path = Path(path)
+    if not path.is_dir():
+        return path
+    files = sorted(path.glob("*.mcap"))
+    if len(files) != 1:
+        raise SourceError(f"{path}: a rosbag2 folder with {len(files)} .mcap files (need one)")
+    return files[0]
+
+
+def _status(text: str, where: str) -> Status:
+    name = str(text).strip().upper()
+    if name not in STATUS_NAMES:
+        raise SourceError(f"{where}: unknown status {text!r}")
+    return Status[name]
+
+
+def _stamp_ns(stamp: object) -> int:
+    return int(getattr(stamp, "sec", 0)) * 1_000_000_000 + int(getattr(stamp, "nanosec", 0))
+
+
+def read_bag(path: str | os.PathLike) -> BagLog:
+    """Read and decode ``/behavior_tree_log`` (and the tree XML topic, if any)."""
+    file = bag_file(path)
+    where = os.fspath(file)
+    try:
+        with open(file, "rb") as stream:
+            reader = make_reader(stream, decoder_factories=[DecoderFactory()])
+            summary = reader.get_summary()
+            if summary is None:
+                raise SourceError(f"{where}: the MCAP file has no summary (an unfinished bag?)")
+            _check_topic(summary, where)
+            entries: list[LogEntry] = []
+            messages = 0
+            xml: bytes | None = None
+            topics = [LOG_TOPIC, XML_TOPIC]
+            for _, channel, _message, decoded in reader.iter_decoded_messages(topics=topics):
+                if channel.topic == XML_TOPIC:
+                    xml = str(getattr(decoded, "data", "")).encode()
+                    continue
+                messages += 1
+                entries.extend(_entries(decoded, f"{where}: message {messages}"))
+    except OSError as error:
+        raise SourceError(f"{where}: cannot read the bag: {error.strerror}") from None
+    except (McapError, ValueError, KeyError, EOFError) as error:
+        if isinstance(error, SourceError):
+            raise
+        raise SourceError(f"{where}: not a readable rosbag2 MCAP file ({error})") from None
+    if not entries:
+        raise SourceError(f"{where}: {LOG_TOPIC} holds no status changes")
+    return BagLog(where, entries, messages, xml)
+
+
+def _check_topic(summary: object, where: str) -> None:
+    channels = list(getattr(summary, "channels", {}).values())
+    schemas = getattr(summary, "schemas", {})
+    log = [c for c in channels if c.topic == LOG_TOPIC]
+    if not log:
+        topics = ", ".join(sorted({c.topic for c in channels})) or "none"
+        raise SourceError(f"{where}: no {LOG_TOPIC} topic (topics: {topics})")
+    schema = schemas.get(log[0].schema_id)
+    name = schema.name if schema is not None else "(no schema)"
+    encoding = schema.encoding if schema is not None else ""
+    if name != LOG_TYPE or encoding != "ros2msg" or log[0].message_encoding != "cdr":
+        raise SourceError(
+            f"{where}: {LOG_TOPIC} has type {name!r} ({encoding or '?'}/"
+            f"{log[0].message_encoding}); expected {LOG_TYPE} (ros2msg/cdr)"
+        )
+
+
+def _entries(decoded: object, where: str) -> Iterator[LogEntry]:
+    for event in getattr(decoded, "event_log", []):
+        uid = getattr(event, "uid", None)
+        yield LogEntry(
+            _stamp_ns(event.timestamp),
+            str(event.node_name),
+            None if uid is None else int(uid),
+            _status(event.previous_status, where),
+            _status(event.current_status, where),
+        )
+
+
+def bag_tree(log: BagLog, tree_file: str | os.PathLike | None, registry: Registry | None) -> Tree:
+    """The tree of the run: ``tree_file`` (checked against the bag's XML when it has
+    one), else the bag's own tree XML."""
+    if log.tree_xml is not None:
+        own = tree_from_log_xml(log.tree_xml, f"{log.file} ({XML_TOPIC})", registry)
+        return own if tree_file is None else tree_from_file(tree_file, own, registry)
+    if tree_file is None:
+        raise SourceError(f"{log.file}: the bag holds no tree; give the tree file with --tree")
+    try:
+        return load_tree(tree_file, registry, accept_unknown=True)
+    except TreeError as error:
+        raise SourceError(str(error)) from None
+
+
+def match_uids(entries: list[LogEntry], tree: Tree, where: str) -> tuple[list[int], str]:
+    """The tree uid of every entry and how they were matched ("uid" or "name")."""
+    if all(e.uid is not None for e in entries):
+        for entry in {(e.uid, e.name): e for e in entries}.values():
+            node = tree.nodes.get(entry.uid or 0)
+            if node is None or node.name != entry.name:
+                there = "no such node" if node is None else f"it is {node.name!r}"
+                raise SourceError(
+                    f"{where}: the log's node {entry.name!r} has uid {entry.uid}, but in the "
+                    f"tree {there}; --tree is not the tree that ran"
+                )
+        return [e.uid or 0 for e in entries], "uid"
+    by_name: dict[str, list[int]] = {}
+    for node in tree:
+        by_name.setdefault(node.name, []).append(node.uid)
+    uids: list[int] = []
+    for entry in entries:
+        found = by_name.get(entry.name, [])
+        if not found:
+            raise SourceError(
+                f"{where}: the log names node {entry.name!r}, which the tree does not have"
+            )
+        if len(found) > 1:
+            raise SourceError(
+                f"{where}: the log has no uids and {len(found)} nodes of the tree are named "
+                f"{entry.name!r} (uids {', '.join(map(str, found))}); cannot tell them apart"
+            )
+        uids.append(found[0])
+    return uids, "name"
+
+
+def split_goals(entries: list[LogEntry], uids: list[int], root: int) -> list[Goal]:
+    """One Goal per run of the tree: a goal starts when the root leaves IDLE after the
+    previous goal's result, or while the log still has it running (that goal's end is
+    missing). A root leaving IDLE within a goal (Nav2's RecoveryNode halts itself before
+    it returns its result) does not start one. Entries before the first start form a goal
+    of their own: the bag began during it."""
+    goals: list[Goal] = []
+    root_status: Status = IDLE
+    for entry, uid in zip(entries, uids, strict=True):
+        if uid == root and entry.status is not IDLE and entry.prev is IDLE:
+            if not goals or goals[-1].complete or root_status is not IDLE:
+                goals.append(Goal(len(goals) + 1))
+        elif not goals:
+            goals.append(Goal(1))
+        goal = goals[-1]
+        goal.entries.append((entry, uid))
+        if uid == root:
+            root_status = entry.status
+            if entry.status in (SUCCESS, FAILURE):
+                goal.complete = True
+    return goals
+
+
+def import_bag(
+    path: str | os.PathLike,
+    output: str | os.PathLike,
+    tree_file: str | os.PathLike | None = None,
+    registry: Registry | None = None,
+    goal: int | None = None,
+    tick_gap_ns: int = DEFAULT_TICK_GAP_NS,
+) -> list[BuildResult]:
+    """Import every goal of the bag (or goal number ``goal``) as recordings: ``output``
+    for one goal, else ``OUT-goalN.mcap`` beside it."""
+    log = read_bag(path)
+    tree = bag_tree(log, tree_file, registry)
+    uids, matched_by = match_uids(log.entries, tree, log.file)
+    goals = split_goals(log.entries, uids, tree.root.uid)
+    if goal is not None:
+        if not 1 <= goal <= len(goals):
+            raise SourceError(f"{log.file}: --goal {goal}: the bag has {len(goals)} goals")
+        chosen = [goals[goal - 1]]
+    else:
+        chosen = goals
+    output = Path(output)
+    attachments = []
+    if tree_file is not None:
+        attachments.append((Path(tree_file).name, Path(tree_file).read_bytes()))
+    elif log.tree_xml is not None:
+        attachments.append(("nav2-tree.xml", log.tree_xml))
+    results = []
+    for item in chosen:
+        target = (
+            output
+            if len(chosen) == 1
+            else output.with_name(f"{output.stem}-goal{item.index}{output.suffix or '.mcap'}")
+        )
+        source = Source.of_file(
+            FORMAT,
+            log.file,
+            topic=LOG_TOPIC,
+            messages=log.messages,
+            matched_by=matched_by,
+            goal=item.index,
+            goals=len(goals),
+        )
+        results.append(_build(item, tree, source, target, attachments, tick_gap_ns))
+    return results
+
+
+def _build(
+    goal: Goal,
+    tree: Tree,
+    source: Source,
+    output: Path,
+    attachments: list[tuple[str, bytes]],
+    tick_gap_ns: int,
+) -> BuildResult:
+    start = goal.entries[0][0].t_ns
+    metadata = {} if goal.complete else {"incomplete": INCOMPLETE}
+    builder = RecordingBuilder(
+        output,
+        tree,
+        source,
+        started_at=datetime.fromtimestamp(start / 1e9, UTC),
+        attachments=attachments,
+        metadata=metadata,
+        tick_gap_ns=tick_gap_ns,
+    )
+    try:
+        for entry, uid in goal.entries:
+            builder.transition(entry.t_ns - start, uid, entry.status, entry.prev)
+    except BaseException:
+        builder.close()
+        output.unlink(missing_ok=True)
+        raise
+    if not goal.complete:
+        builder.warnings.append(f"goal {goal.index}: {INCOMPLETE}")
+    return builder.close()
