@@ -9,6 +9,7 @@ from __future__ import annotations
 
 import dataclasses
 import os
+import re
 import subprocess
 import sys
 from concurrent.futures import ThreadPoolExecutor
@@ -16,14 +17,18 @@ from pathlib import Path
 
 import pytest
 
+from btlog.explain.questions import explain
 from btlog.record.reader import open_recording
+from btlog.runner import RunConfig, execute
 from btlog.sources.btcpp_filelog import import_filelog, read_filelog
 from btlog.sources.btcpp_tree import tree_from_log_xml
+from btlog.state import StateProjection
 from btlog.tree.loader import load_tree_text
 from btlog.tree.model import CONDITION
 from btlog.tree.registry import NodeType, Registry
 from tests.oracle.random_trees import generate
 from tests.oracle.runner import have_behaviortreepy, run_oracle
+from tests.test_cli import btlog as cli
 from tests.test_differential import btlog_transitions
 
 CASES = int(os.environ.get("BTLOG_IMPORT_CASES", "30"))
@@ -128,3 +133,78 @@ def test_truncated_btlog_imports_whole_records_with_a_warning(btcpp_logs, tmp_pa
     assert "ends inside a record" in proc.stderr
     assert f"{whole - 1} transitions" in proc.stdout
     assert len(open_recording(tmp_path / "c.mcap").events) == whole - 1
+
+
+def _kitting_for_btcpp() -> tuple[str, dict[str, list[str]]]:
+    """The kitting tree as a BT.CPP process can run it with scripted leaves: leaf types
+    without spaces (BT.CPP writes types as XML tags) and without ports (behaviortreepy
+    registers leaves without ports). Names, and so the explanations, are unchanged."""
+    xml = (Path(__file__).resolve().parent.parent / "trees" / "kitting.xml").read_text()
+    ids: dict[str, set[str]] = {"actions": set(), "conditions": set()}
+
+    def leaf(match: re.Match) -> str:
+        tag, type_id, rest = match.groups()
+        ids["actions" if tag == "Action" else "conditions"].add(type_id.replace(" ", "_"))
+        rest = re.sub(r'\s(?!name=)[A-Za-z_]+="[^"]*"', "", rest)
+        return f'<{tag} ID="{type_id.replace(" ", "_")}"{rest}'
+
+    xml = re.sub(r'<(Action|Condition) ID="([^"]+)"([^>]*)', leaf, xml)
+    return xml, {kind: sorted(types) for kind, types in ids.items()}
+
+
+KITTING_OUTCOMES = {
+    "default": {"status": "SUCCESS", "ticks": 1},
+    "nodes": {
+        "look at chuck": [{"status": "FAILURE", "ticks": 1}, {"status": "SUCCESS", "ticks": 1}]
+    },
+}
+
+
+@pytest.fixture(scope="module")
+def kitting_btlog(tmp_path_factory) -> tuple[Path, Path]:
+    """BT.CPP's FileLogger2 log of the kitting tree ("look at chuck" fails once), and the
+    tree file it ran."""
+    if not have_behaviortreepy():
+        pytest.skip("behaviortreepy missing")
+    folder = tmp_path_factory.mktemp("kitting")
+    xml, leaf_ids = _kitting_for_btcpp()
+    log, tree_file = folder / "robot.btlog", folder / "kitting.xml"
+    tree_file.write_text(xml)
+    payload = {"xml": xml, "outcomes": KITTING_OUTCOMES, "max_ticks": 500, "file_log": str(log)}
+    payload |= {"tick_sleep_ms": TICK_SLEEP_MS, "leaf_ids": leaf_ids}
+    result = run_oracle(payload, 60)
+    assert result is not None and not result["error"], result
+    return log, tree_file
+
+
+def test_explanations_on_imported_kitting_run_equal_btlogs_own(kitting_btlog, tmp_path) -> None:
+    log, tree_file = kitting_btlog
+    import_filelog(log, tmp_path / "imported.mcap", tick_gap_ns=TICK_GAP_NS)
+    execute(RunConfig(tree=str(tree_file), outcomes=KITTING_OUTCOMES), tmp_path / "own.mcap")
+    imported, own = (
+        open_recording(tmp_path / "imported.mcap"),
+        open_recording(tmp_path / "own.mcap"),
+    )
+    assert len(imported.events) == len(own.events) > 200
+    folds = StateProjection(imported.tree), StateProjection(own.tree)
+    failures = 0
+    for theirs, ours in zip(imported.events, own.events, strict=True):
+        folds[0].apply(theirs)
+        folds[1].apply(ours)
+        answers = [[a.text for a in explain(f.tree, f.state)] for f in folds]
+        assert answers[0] == answers[1], f"after event {ours.seq}"
+        failures += "look at chuck failed" in answers[1][-1]
+    assert failures > 0  # the failure was explained, in both
+
+
+def test_readme_three_commands_on_a_btcpp_log(kitting_btlog, tmp_path) -> None:
+    log, _tree = kitting_btlog
+    run = str(tmp_path / "robot.mcap")
+    imported = cli("import", str(log), "-o", run)
+    assert imported.returncode == 0, imported.stderr
+    failed = cli("timeline", run, "--status", "FAILURE", "--plain")
+    lines = failed.stdout.splitlines()
+    assert "look at chuck" in lines[0]
+    seq = lines[-1].split()[0]  # the failure as far as it went
+    asked = cli("ask", run, "--at", f"seq:{seq}", "What went wrong?")
+    assert asked.stdout.strip().endswith("because look at chuck failed."), asked.stdout

@@ -13,6 +13,8 @@ written everything); ``"tick_sleep_ms": N`` sleeps between ticks (so ticks are a
 ``"groot2_port": P`` serves the tree with a ``Groot2Publisher``; with ``"sync_dir": DIR`` the
 oracle creates DIR/ready once it serves, waits for DIR/go before the first tick, creates
 DIR/ran after the last, and waits for DIR/quit before it prints and exits.
+``"leaf_ids": {"actions": [...], "conditions": [...]}`` registers more type IDs as scripted
+actions and conditions (trees written with their own leaf types).
 
 Output, one JSON object on stdout::
 
@@ -111,7 +113,9 @@ class _StdoutCapture:
         return rest
 
 
-def _make_factory(bt: Any, leaves: ScriptedLeaves, errors: list[str]) -> Any:
+def _make_factory(
+    bt: Any, leaves: ScriptedLeaves, errors: list[str], leaf_ids: dict[str, list[str]] | None = None
+) -> Any:
     """Register the scripted leaves; exceptions in them are appended to ``errors``.
 
     behaviortreepy turns an exception raised by a Python callback into a plain FAILURE
@@ -139,6 +143,12 @@ def _make_factory(bt: Any, leaves: ScriptedLeaves, errors: list[str]) -> Any:
         ACTION_ID, guarded(leaves.start), guarded(leaves.running), guarded(leaves.halted)
     )
     factory.register_simple_condition(CONDITION_ID, guarded(leaves.condition))
+    for type_id in (leaf_ids or {}).get("actions", []):
+        factory.register_simple_stateful_action(
+            type_id, guarded(leaves.start), guarded(leaves.running), guarded(leaves.halted)
+        )
+    for type_id in (leaf_ids or {}).get("conditions", []):
+        factory.register_simple_condition(type_id, guarded(leaves.condition))
     return factory
 
 
@@ -151,6 +161,7 @@ def run_case(
     tick_sleep_ms: float = 0.0,
     groot2_port: int | None = None,
     sync_dir: str | None = None,
+    leaf_ids: dict[str, list[str]] | None = None,
 ) -> dict[str, Any]:
     """Run ``xml`` in BT.CPP for at most ``max_ticks`` ticks; return the result dict.
 
@@ -185,7 +196,7 @@ def run_case(
     capture = _StdoutCapture()
     keep_alive: list[Any] = []
     try:
-        factory = _make_factory(bt, leaves, callback_errors)
+        factory = _make_factory(bt, leaves, callback_errors, leaf_ids)
         try:
             tree = factory.create_tree_from_text(xml)
         except Exception as exc:
@@ -280,6 +291,7 @@ def main() -> None:
         float(case.get("tick_sleep_ms", 0.0)),
         case.get("groot2_port"),
         case.get("sync_dir"),
+        case.get("leaf_ids"),
     )
     sys.stdout.write(json.dumps(result) + "\n")
     sys.stdout.flush()

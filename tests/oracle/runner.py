@@ -32,7 +32,8 @@ def case_payload(case: Any) -> dict[str, Any]:
         "outcomes": data.get("outcomes") or {},
         "max_ticks": int(data.get("max_ticks", 20)),
     }
-    for key in ("tick_mode", "file_log", "tick_sleep_ms", "groot2_port", "sync_dir"):
+    keys = ("tick_mode", "file_log", "tick_sleep_ms", "groot2_port", "sync_dir", "leaf_ids")
+    for key in keys:
         if data.get(key):
             payload[key] = data[key]
     return payload
