@@ -338,8 +338,12 @@ class CheckResult:
 
     def report(self) -> str:
         """Readable lines: a one-line verdict, then expected/actual on failure."""
+        return "\n".join(self.report_lines())
+
+    def report_lines(self) -> list[str]:
+        """The lines of ``report`` (a name holding a newline stays inside its line)."""
         if self.ok:
-            return f"ok    {self.what}"
+            return [f"ok    {self.what}"]
         lines = [
             f"FAIL  {self.what}",
             f"        expected: {self.expected}",
@@ -347,7 +351,7 @@ class CheckResult:
         ]
         if self.detail:
             lines += ["        " + line if line else "" for line in self.detail.splitlines()]
-        return "\n".join(lines)
+        return lines
 
     def to_json(self) -> dict:
         """JSON-ready form."""
@@ -501,12 +505,17 @@ class RerunReport:
 
     def render(self) -> str:
         """A readable report: the checks, and the side-by-side view of what differs."""
+        return "\n".join(self.render_lines())
+
+    def render_lines(self) -> list[str]:
+        """The lines of ``render`` (a name holding a newline stays inside its line)."""
         changed = " (changed since the recording)" if self.tree_changed else ""
         lines = [f"re-run of {self.run} with {self.tree}{changed}"]
-        lines += [result.report() for result in self.results]
+        for result in self.results:
+            lines += result.report_lines()
         if not self.divergence.identical:
-            lines += ["", render(self.divergence, only_divergent=True)]
-        return "\n".join(lines)
+            lines += ["", *render(self.divergence, only_divergent=True).splitlines()]
+        return lines
 
     def to_json(self) -> dict:
         """JSON-ready form."""

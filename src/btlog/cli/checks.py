@@ -27,7 +27,8 @@ from btlog.checks.expectations import (
 from btlog.explain.behaviours import diff_paths
 from btlog.explain.divergence import to_json
 from btlog.render.divergence import render_lines
-from btlog.render.terminal import make_console, safe
+from btlog.render.escape import safe
+from btlog.render.terminal import make_console
 
 EXIT_OK, EXIT_CHECK_FAILED = 0, 1
 _STYLES = {
@@ -85,24 +86,15 @@ def _print_run(
         failed = sum(not r.ok for r in results)
         print(f"  expectations {safe(expectations.source)}: {len(results)} checks, {failed} failed")
         for result in results:
-            print(_indent(safe_report(result), 4))
+            _print_lines(result.report_lines(), 4)
     if report is not None:
-        print(_indent(safe_multiline(report.render()), 2))
+        _print_lines(report.render_lines(), 2)
 
 
-def safe_report(result: CheckResult) -> str:
-    """A check's report with control characters made visible, line by line."""
-    return safe_multiline(result.report())
-
-
-def safe_multiline(text: str) -> str:
-    """``safe`` applied to each line of ``text``."""
-    return "\n".join(safe(line) for line in text.splitlines())
-
-
-def _indent(text: str, spaces: int) -> str:
-    pad = " " * spaces
-    return "\n".join(pad + line if line else "" for line in text.splitlines())
+def _print_lines(lines: list[str], spaces: int) -> None:
+    """Print each line escaped (names inside may hold newlines), indented."""
+    for line in lines:
+        print(" " * spaces + safe(line) if line else "")
 
 
 def check(args: Namespace) -> int:

@@ -16,13 +16,8 @@ from btlog.explain.hierarchy import current_nodes
 from btlog.explain.insertion import apply_to_copy
 from btlog.explain.questions import Answer, answer
 from btlog.explain.questions import explain as explain_all
-from btlog.render.terminal import (
-    blackboard_lines,
-    format_ns,
-    make_console,
-    safe,
-    tree_lines,
-)
+from btlog.render.escape import safe
+from btlog.render.terminal import blackboard_lines, format_ns, make_console, tree_lines
 from btlog.runner import RunConfig, execute
 from btlog.status import Status
 from btlog.tree.loader import load_tree
@@ -52,7 +47,8 @@ def run(args: Namespace) -> int:
 
     def on_answer(question, result: Answer, seq: int) -> None:
         if not args.quiet:
-            print(f"[{question.when}] {question.question}\n  {result.text}", flush=True)
+            print(f"[{safe(question.when)}] {safe(question.question)}", flush=True)
+            print(f"  {safe(result.text)}", flush=True)
 
     interactive = sys.stderr.isatty() and not args.quiet
     if interactive:
@@ -75,7 +71,7 @@ def run(args: Namespace) -> int:
     else:
         result = execute(config, args.output, on_answer)
     if args.quiet:
-        print(result.path)
+        print(safe(result.path))
         return 0
     console.print(f"recording: {safe(result.path)}", highlight=False)
     final = result.final_status.name
@@ -130,7 +126,7 @@ def ask(args: Namespace) -> int:
     if args.json:
         _print_json({**result.to_json(), "moment": _moment_json(state, args.at)})
         return 0
-    print(result.text)
+    print(safe(result.text))
     if result.insertion is not None:
         changed = apply_to_copy(tree, result.insertion, seq=state.seq)
         console = make_console()
@@ -160,9 +156,9 @@ def explain(args: Namespace) -> int:
         )
         return 0
     for result in answers:
-        print(f"{result.question}\n  {result.text}")
+        print(f"{result.question}\n  {safe(result.text)}")
     for note in notes:
-        print(f"Note: {note}")
+        print(f"Note: {safe(note)}")
     return 0
 
 
@@ -177,11 +173,11 @@ def show(args: Namespace) -> int:
         Path(args.html).write_text(
             page(title, tree, state, current, explain_all(tree, state)), encoding="utf-8"
         )
-        print(args.html)
+        print(safe(args.html))
         return 0
     console = make_console(args.plain)
     console.print(
-        f"at {args.at}: seq {state.seq}, tick {state.tick}, {format_ns(state.t_ns)}",
+        f"at {safe(args.at)}: seq {state.seq}, tick {state.tick}, {format_ns(state.t_ns)}",
         highlight=False,
     )
     for line in tree_lines(tree, state, current):
@@ -248,8 +244,8 @@ def sql(args: Namespace) -> int:
     elif args.format == "csv":
         buffer = io.StringIO()
         writer = csv.writer(buffer)
-        writer.writerow(columns)
-        writer.writerows(rows)
+        writer.writerow([safe(c) for c in columns])
+        writer.writerows([["" if v is None else safe(v) for v in row] for row in rows])
         sys.stdout.write(buffer.getvalue())
     else:
         from rich.table import Table
@@ -267,7 +263,7 @@ def recover(args: Namespace) -> int:
     from btlog.record.recover import recover as salvage
 
     report = salvage(args.broken, args.output)
-    print(report)
+    print(safe(report))
     return 0
 
 

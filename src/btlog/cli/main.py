@@ -211,8 +211,11 @@ def _is_bad_input(error: BaseException) -> bool:
 
 
 def _one_line(error: BaseException) -> str:
+    """The error's message on one line, escaped (it may echo names and file names)."""
+    from btlog.render.escape import safe
+
     text = str(error).strip() or type(error).__name__
-    return " ".join(text.split())
+    return safe(" ".join(text.split()))
 
 
 def main(argv: Sequence[str] | None = None) -> int:

@@ -18,6 +18,7 @@ from collections.abc import Iterator
 
 from btlog.explain.hierarchy import current_nodes
 from btlog.explain.questions import UnknownQuestion, answer, explain
+from btlog.render.escape import safe
 from btlog.render.terminal import blackboard_lines, format_ns, make_console, tree_lines
 
 HELP = (
@@ -77,7 +78,7 @@ class Stepper:
             for line in blackboard_lines(state) or ["(the blackboard is empty)"]:
                 console.print(line)
         for result in explain(tree, state):
-            console.print(f"{result.question}  {result.text}", highlight=False)
+            console.print(f"{result.question}  {safe(result.text)}", highlight=False)
 
 
 def _commands(script: str | None) -> Iterator[str]:
@@ -133,7 +134,7 @@ def _apply(stepper: Stepper, line: str) -> bool:
         moves[word]()
         stepper.render()
     else:
-        stepper.console.print(f"unknown command {line.strip()!r}; {HELP}", highlight=False)
+        stepper.console.print(f"unknown command {safe(line.strip())!r}; {HELP}", highlight=False)
     return True
 
 
@@ -150,7 +151,7 @@ def replay(args: Namespace) -> int:
                 if not _apply(stepper, line):
                     break
             except (ValueError, UnknownQuestion) as error:
-                stepper.console.print(f"error: {error}", highlight=False)
+                stepper.console.print(f"error: {safe(error)}", highlight=False)
     finally:
         database.close()
     return 0

@@ -8,6 +8,7 @@ from argparse import Namespace
 from pathlib import Path
 from typing import Any
 
+from btlog.render.escape import safe
 from btlog.sources.builder import DEFAULT_TICK_GAP_NS, BuildResult
 from btlog.tree.registry import Registry
 
@@ -91,9 +92,9 @@ def _gap_ns(args: Namespace) -> int:
 
 def _report(source: str, result: BuildResult, command: str) -> None:
     for warning in result.warnings:
-        print(f"btlog {command}: warning: {warning}", file=sys.stderr)
+        print(f"btlog {command}: warning: {safe(warning)}", file=sys.stderr)
     print(
-        f"{source} -> {result.path}: {result.transitions} transitions, "
+        f"{safe(source)} -> {safe(result.path)}: {result.transitions} transitions, "
         f"{result.writes} writes, {result.ticks} ticks, last root status {result.final_status}"
     )
 
@@ -159,7 +160,7 @@ def export(args: Namespace) -> int:
         raise ValueError(f"{args.output}: would overwrite the recording being exported")
     recording = open_recording(args.run)
     for warning in recording.warnings:
-        print(f"btlog export: warning: {warning}", file=sys.stderr)
+        print(f"btlog export: warning: {safe(warning)}", file=sys.stderr)
     if args.to == "nav2":
         from btlog.sinks.nav2_rosbag import export_nav2
 
@@ -175,7 +176,7 @@ def export(args: Namespace) -> int:
         )
     messages = getattr(result, "messages", None)
     counted = f"{messages} messages, " if messages is not None else ""
-    print(f"{args.run} -> {result.path}: {counted}{result.transitions} transitions")
+    print(f"{safe(args.run)} -> {safe(result.path)}: {counted}{result.transitions} transitions")
     return 0
 
 
@@ -196,7 +197,8 @@ def attach(args: Namespace) -> int:
     options = AttachOptions(args.duration, args.poll, args.blackboard, tick_gap_ns=_gap_ns(args))
 
     def printed(question: LiveQuestion, result: Answer) -> None:
-        print(f"[{question.when}] {question.question}\n  {result.text}", flush=True)
+        print(f"[{safe(question.when)}] {safe(question.question)}", flush=True)
+        print(f"  {safe(result.text)}", flush=True)
 
     class Hooks(LiveAnswers):
         def on_start(self, builder: RecordingBuilder) -> None:

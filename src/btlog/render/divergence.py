@@ -7,7 +7,7 @@ start with ``!`` and show the action's immediate parent, as in the paper's Fig. 
 from __future__ import annotations
 
 from btlog.explain.divergence import Divergence, ExecutedAction, Move, SubgoalDivergence
-from btlog.render.terminal import safe
+from btlog.render.escape import safe
 
 
 def move_text(move: Move) -> str:

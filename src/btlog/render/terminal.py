@@ -2,20 +2,20 @@
 
 Everything here returns ``rich.text.Text`` lines built from plain strings with styles,
 never from markup, so a node named ``[red]x`` or holding escape codes prints literally:
-names come from untrusted XML and are passed through ``safe`` first. Colour follows the
+names come from untrusted XML and are passed through ``safe`` (``btlog.render.escape``)
+first; consoles never read markup or emoji codes. Colour follows the
 console (``NO_COLOR`` is honoured by rich; ``--plain`` turns it off).
 """
 
 from __future__ import annotations
 
 import json
-import unicodedata
 from collections.abc import Iterable
-from typing import Any
 
 from rich.console import Console
 from rich.text import Text
 
+from btlog.render.escape import safe
 from btlog.state import State
 from btlog.status import IDLE, Status
 from btlog.tree.model import Node, Tree
@@ -29,24 +29,20 @@ STATUS_STYLES = {
 }
 
 
-def safe(text: Any) -> str:
-    """A string with control characters (escape codes, newlines) made visible."""
-    out = []
-    for char in str(text):
-        if unicodedata.category(char).startswith("C"):
-            out.append(char.encode("unicode_escape").decode("ascii"))
-        else:
-            out.append(char)
-    return "".join(out)
-
-
 def make_console(plain: bool = False, stderr: bool = False) -> Console:
-    """A console for output; ``plain`` disables colour and styling."""
+    """A console for output; ``plain`` disables colour and styling. Strings printed on
+    it are never read as markup (``[link=…]``) or emoji codes (``:warning:``)."""
     if plain:
         return Console(
-            color_system=None, no_color=True, highlight=False, stderr=stderr, soft_wrap=True
+            color_system=None,
+            no_color=True,
+            highlight=False,
+            markup=False,
+            emoji=False,
+            stderr=stderr,
+            soft_wrap=True,
         )
-    return Console(highlight=False, stderr=stderr, soft_wrap=True)
+    return Console(highlight=False, markup=False, emoji=False, stderr=stderr, soft_wrap=True)
 
 
 def node_label(node: Node, status: Status, current: bool) -> Text:
