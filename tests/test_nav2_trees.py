@@ -142,3 +142,29 @@ def test_state_counts_recovery_attempts_of_the_first_child_only(tmp_path: Path) 
         seen.add(projection.state.retry_attempts.get(follow.uid, 0))
     assert seen == {0, 1}
     assert follow.uid not in projection.state.retry_attempts  # the node completed
+
+
+@pytest.mark.parametrize("kind", sorted(TREES))
+def test_a_nodes_model_makes_nav2_conditions_conditions(kind: str, tmp_path: Path) -> None:
+    config = RunConfig(
+        str(nav2_tree(kind)),
+        outcomes_file=str(FAILS_ONCE),
+        nodes_model=str(OURS / "nodes_model.xml"),
+        questions=["2.2s=What went wrong?"],
+    )
+    result = execute(config, tmp_path / "run.mcap")
+    assert result.final_status is SUCCESS
+    assert [a.text for _, a, _ in result.answers] == [
+        "I could not FollowPath because FollowPath failed."
+    ]
+    recording = open_recording(result.path)
+    conditions = {n.uid: n.type for n in recording.tree if n.kind == "condition"}
+    assert set(conditions.values()) == {
+        "GlobalUpdatedGoal",
+        "GoalUpdated",
+        "IsGoalNearby",
+        "WouldAControllerRecoveryHelp",
+        "WouldAPlannerRecoveryHelp",
+    }
+    assert all(e.status.name != "RUNNING" for e in recording.transitions if e.uid in conditions)
+    assert recording.metadata["nodes_model"].endswith("nodes_model.xml")

@@ -30,7 +30,7 @@ from btlog.explain.questions import Answer, answer, parse_question
 from btlog.record.recorder import Recorder
 from btlog.state import StateProjection
 from btlog.status import Status
-from btlog.tree.loader import load_tree
+from btlog.tree.loader import load_nodes_model, load_tree
 from btlog.tree.model import Tree
 
 DEFAULT_MAX_TICKS = 100_000
@@ -102,6 +102,7 @@ class RunConfig:
     questions: list[str] = field(default_factory=list)
     realtime: bool = False
     flush_interval: float = 1.0
+    nodes_model: str | None = None
 
     def load_outcomes(self) -> Outcomes:
         """The outcomes (file or mapping) with the --fail specs and failure rate."""
@@ -138,6 +139,7 @@ class RunConfig:
             "tick_period": repr(self.tick_period),
             "max_ticks": str(self.max_ticks),
             "clock": "wall" if self.realtime else "sim",
+            "nodes_model": self.nodes_model or "",
             "btlog_version": __version__,
             "schema_version": SCHEMA_VERSION,
         }
@@ -161,6 +163,7 @@ class RunConfig:
             max_ticks=int(metadata.get("max_ticks", DEFAULT_MAX_TICKS)),
             questions=list(loaded("questions", [])),
             realtime=metadata.get("clock") == "wall",
+            nodes_model=metadata.get("nodes_model") or None,
         )
 
 
@@ -257,7 +260,8 @@ def execute(
     on_tick: Callable[[int], None] | None = None,
 ) -> RunResult:
     """Run ``config`` and record it; returns where the recording is and how it ended."""
-    tree = load_tree(config.tree)
+    registry = load_nodes_model(config.nodes_model) if config.nodes_model else None
+    tree = load_tree(config.tree, registry)
     outcomes = config.load_outcomes()
     outcomes.check_keys(tree)
     questions = [LiveQuestion.parse(q) for q in config.questions]

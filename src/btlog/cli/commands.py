@@ -34,6 +34,7 @@ def run(args: Namespace) -> int:
         tree=args.tree,
         domain=args.domain,
         outcomes_file=args.outcomes,
+        nodes_model=args.nodes_model,
         fail=args.fail,
         failure_rate=args.failure_rate,
         seed=args.seed,

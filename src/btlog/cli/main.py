@@ -54,6 +54,12 @@ def build_parser() -> argparse.ArgumentParser:
     )
     run.add_argument("--outcomes", metavar="F", help="outcomes file (YAML or JSON)")
     run.add_argument(
+        "--nodes-model",
+        metavar="FILE",
+        help="XML with a <TreeNodesModel> giving your leaf types' kinds and ports "
+        "(e.g. Nav2's nav2_tree_nodes.xml: its conditions then run as conditions)",
+    )
+    run.add_argument(
         "--fail",
         metavar="SPEC",
         action="append",
