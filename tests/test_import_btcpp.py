@@ -208,3 +208,27 @@ def test_readme_three_commands_on_a_btcpp_log(kitting_btlog, tmp_path) -> None:
     seq = lines[-1].split()[0]  # the failure as far as it went
     asked = cli("ask", run, "--at", f"seq:{seq}", "What went wrong?")
     assert asked.stdout.strip().endswith("because look at chuck failed."), asked.stdout
+
+
+def test_imported_run_works_with_diff_check_sql_and_show(kitting_btlog, tmp_path) -> None:
+    log, tree_file = kitting_btlog
+    run, own = tmp_path / "robot.mcap", tmp_path / "own.mcap"
+    import_filelog(log, run, tick_gap_ns=TICK_GAP_NS)
+    execute(RunConfig(tree=str(tree_file), outcomes=KITTING_OUTCOMES), own)
+    diff = cli("diff", str(own), str(run), "--plain")
+    assert diff.returncode == 0, diff.stdout + diff.stderr
+    expect = tmp_path / "robot.expect.yaml"
+    expect.write_text(
+        "final_status: SUCCESS\n"
+        "answers:\n"
+        '  - {at: "seq:47", ask: "What went wrong?", answer: "I am retrying for attempt 1 to '
+        'go insert large gear. I could not insert large gear because look at chuck failed."}\n'
+        "statuses:\n"
+        '  - {at: "seq:31", node: "look at chuck", status: FAILURE}\n'
+    )
+    check = cli("check", str(run), "--expect", str(expect))
+    assert check.returncode == 0, check.stdout + check.stderr
+    sql = cli("sql", str(run), "SELECT count(*) AS n FROM transitions", "--format", "csv")
+    assert sql.stdout.split() == ["n", str(len(open_recording(run).events))]
+    shown = cli("show", str(run), "--at", "seq:47", "--blackboard", "--plain")
+    assert "the blackboard was not recorded: btcpp-filelog2" in shown.stdout

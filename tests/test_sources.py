@@ -101,7 +101,8 @@ def test_tick_rule_root_reset_and_gaps(tmp_path: Path) -> None:
     recording = open_recording(tmp_path / "r.mcap")
     assert [e.tick for e in recording.events] == [1, 1, 2, 2, 2, 2, 3, 3]
     assert [r.root_status.name for r in recording.ticks] == ["RUNNING", "FAILURE", "RUNNING"]
-    assert recording.metadata["source"] == {"format": "test", "file": "mem", "sha256": ""}
+    source = {"format": "test", "file": "mem", "sha256": "", "blackboard": False}
+    assert recording.metadata["source"] == source
 
 
 @settings(max_examples=25, deadline=None)

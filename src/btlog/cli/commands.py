@@ -185,9 +185,19 @@ def show(args: Namespace) -> int:
         console.print(line)
     if args.blackboard:
         console.print()
-        for line in blackboard_lines(state) or ["(the blackboard is empty)"]:
+        for line in blackboard_lines(state) or [_no_blackboard(args.run)]:
             console.print(line)
     return 0
+
+
+def _no_blackboard(path: str) -> str:
+    """Why an empty blackboard is empty: it is, or the imported source never records it."""
+    from btlog.record.reader import read_metadata
+
+    source = read_metadata(path).get("source")
+    if isinstance(source, dict) and not source.get("blackboard", True):
+        return f"(the blackboard was not recorded: {source.get('format')} logs hold none)"
+    return "(the blackboard is empty)"
 
 
 def timeline(args: Namespace) -> int:

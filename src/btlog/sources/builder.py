@@ -65,8 +65,10 @@ class Source:
         return cls(format, os.fspath(path), digest.hexdigest(), details)
 
     def describe(self) -> dict[str, Any]:
-        """The JSON-ready ``source`` metadata value."""
-        return {"format": self.format, "file": self.file, "sha256": self.sha256, **self.details}
+        """The JSON-ready ``source`` metadata value; ``blackboard`` tells whether the
+        source records blackboard values at all (False unless its details say so)."""
+        head = {"format": self.format, "file": self.file, "sha256": self.sha256}
+        return {**head, "blackboard": False, **self.details}
 
 
 @dataclass
