@@ -51,3 +51,12 @@ def tree_file(request: pytest.FixtureRequest) -> Path:
         folder: Path = request.getfixturevalue("paper_trees")
         return folder / spec.removeprefix(PAPER_PREFIX)
     return ROOT / spec
+
+
+@pytest.fixture(scope="session", autouse=True)
+def cache_folder(tmp_path_factory: pytest.TempPathFactory) -> Path:
+    """The read model's caches of the whole session (CLI subprocesses included) go to a
+    temporary folder, never to the user's cache folder."""
+    folder = tmp_path_factory.mktemp("btlog-cache")
+    os.environ["BTLOG_CACHE_DIR"] = str(folder)
+    return folder

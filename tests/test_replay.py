@@ -13,7 +13,6 @@ cut recording, the cache, mutations, blackboard values, and the slow decoding pa
 from __future__ import annotations
 
 import json
-import os
 import shutil
 import struct
 from dataclasses import dataclass, field
@@ -34,7 +33,7 @@ from btlog.explain.questions import answer
 from btlog.record import format as fmt
 from btlog.record.recorder import Recorder
 from btlog.record.schemas import schema_text
-from btlog.replay.database import ReplayError, cache_location, open_runs, user_cache_dir
+from btlog.replay.database import ReplayError, open_runs
 from btlog.replay.moments import MomentError, parse_moment
 from btlog.replay.scan import McapScan
 from btlog.status import FAILURE, IDLE, RUNNING, SUCCESS
@@ -509,60 +508,6 @@ def test_a_truncated_recording_ingests_its_readable_prefix(tmp_path):
 
 
 # -- the cache --------------------------------------------------------------------------------
-def test_the_cache_is_reused_and_rebuilt_when_the_recording_changes(kitting, tmp_path):
-    original, live = kitting
-    path = tmp_path / "run.mcap"
-    shutil.copyfile(original, path)
-    with open_runs(path) as database:
-        assert len(database.ingested) == 1
-    cache = cache_location(path)
-    assert cache == tmp_path / "run.mcap.duckdb" and cache.is_file()
-    built = cache.stat().st_mtime_ns
-    with open_runs(path) as database:
-        assert database.ingested == []
-        assert database.run().info.events == len(live.states)
-    assert cache.stat().st_mtime_ns == built
-    stat = path.stat()
-    os.utime(path, ns=(stat.st_atime_ns, stat.st_mtime_ns + 1_000_000_000))
-    with open_runs(path) as database:
-        assert len(database.ingested) == 1
-    record(path, TAXI, {"default": DEFAULT}, max_ticks=20)
-    with open_runs(path) as database:
-        assert len(database.ingested) == 1
-        assert database.run().info.tree_name == "MainTree"
-        assert (
-            database.run().info.events == database.sql("SELECT count(*) FROM transitions")[1][0][0]
-        )
-    assert not list(tmp_path.glob(".*.duckdb")), "temporary caches are cleaned up"
-
-
-def test_cache_locations(tmp_path, monkeypatch):
-    monkeypatch.setenv("XDG_CACHE_HOME", str(tmp_path / "xdg"))
-    assert user_cache_dir() == tmp_path / "xdg" / "btlog"
-    recording = tmp_path / "a.mcap"
-    assert cache_location(recording) == tmp_path / "a.mcap.duckdb"
-    elsewhere = cache_location(recording, tmp_path / "caches")
-    assert elsewhere.parent == tmp_path / "caches" and elsewhere.name.endswith(".duckdb")
-    assert cache_location(tmp_path / "b" / "a.mcap", tmp_path / "caches") != elsewhere
-
-
-def test_the_user_cache_folder_is_used_when_beside_fails(kitting, tmp_path, monkeypatch):
-    original, live = kitting
-    monkeypatch.setenv("XDG_CACHE_HOME", str(tmp_path / "xdg"))
-    folder = tmp_path / "recordings"
-    folder.mkdir()
-    path = folder / "run.mcap"
-    shutil.copyfile(original, path)
-    (folder / "run.mcap.duckdb").mkdir()  # the place beside cannot hold a cache file
-    with open_runs(path) as database:
-        assert len(database.ingested) == 1
-        assert database.run().info.events == len(live.states)
-    [cache] = (tmp_path / "xdg" / "btlog").iterdir()
-    assert cache.name.startswith("run.mcap-") and cache.suffix == ".duckdb"
-    with open_runs(path) as database:
-        assert database.ingested == []
-
-
 def test_without_cache_nothing_is_written(kitting, tmp_path):
     original, live = kitting
     path = tmp_path / "run.mcap"

@@ -261,12 +261,11 @@ class StoredRun:
     the final status. Use as a context manager, or call ``close``."""
 
     def __init__(self, path: str | os.PathLike) -> None:
-        from btlog.replay.database import open_runs, user_cache_dir
+        from btlog.replay.database import open_runs
 
         self.path = os.fspath(path)
         self._recording: Recording | None = None
-        # Checked recordings usually live in a project: their caches stay out of it.
-        self._database = open_runs(self.path, cache_dir=user_cache_dir())
+        self._database = open_runs(self.path)
         try:
             self._run = self._database.run(self.path)
         except BaseException:

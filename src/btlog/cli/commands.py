@@ -96,6 +96,8 @@ def _open_runs(*paths: str):
             database = open_runs(*paths)
     else:
         database = open_runs(*paths)
+    for notice in database.notices:
+        print(f"btlog: notice: {safe(notice)}", file=sys.stderr)
     for info in database.runs:
         for warning in info.warnings:
             print(f"btlog: warning: {safe(warning)}", file=sys.stderr)

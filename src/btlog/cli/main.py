@@ -180,14 +180,15 @@ def build_parser() -> argparse.ArgumentParser:
     add_limit_flags(validate)
     validate.add_argument("--json", action="store_true", help="JSON output")
 
-    from btlog.cli import sources
+    from btlog.cli import cache, sources
 
     sources.add_parsers(commands)
+    cache.add_parsers(commands)
     return parser
 
 
 def _handlers():
-    from btlog.cli import checks, commands, replay, sources
+    from btlog.cli import cache, checks, commands, replay, sources
 
     return {
         "run": commands.run,
@@ -204,6 +205,7 @@ def _handlers():
         "import": sources.import_,
         "export": sources.export,
         "attach": sources.attach,
+        "cache": cache.cache_command,
     }
 
 
@@ -231,9 +233,12 @@ def main(argv: Sequence[str] | None = None) -> int:
         args = parser.parse_args(argv)
     except SystemExit as exit_:
         return int(exit_.code or 0)
+    from btlog.cli.cache import cache_dir_of
+
     try:
         apply_limit_flags(args)
-        return int(_handlers()[args.command](args) or EXIT_OK)
+        with cache_dir_of(args):
+            return int(_handlers()[args.command](args) or EXIT_OK)
     except KeyboardInterrupt:
         print("btlog: interrupted", file=sys.stderr)
         return 130

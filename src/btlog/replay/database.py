@@ -6,16 +6,12 @@ main schema holds views named like the tables (``runs``, ``nodes``, ``transition
 ``blackboard``, ``ticks``, ``mutations``) that union all the runs, ``run_id`` in every
 row. Users write SQL against those views; ``Run`` objects query their own catalog.
 
-**The cache.** Ingesting a long run costs seconds, so each recording's catalog is a
-DuckDB file kept beside it, ``<recording>.duckdb`` (ignored by git), or, when that folder
-is not writable, in ``$XDG_CACHE_HOME/btlog`` (``~/.cache/btlog``). The cache records
-what it was built from — the recording's absolute path, size and ``mtime_ns``, btlog's
-schema version, the read model's layout version and the snapshot interval — and is used
-only when all of them still match; otherwise it is rebuilt. A cache is built under a
-temporary name and moved into place when complete, so a reader never sees half of one,
-and it is attached read-only, so SQL cannot damage it. Several runs are *attached*, not
-copied: opening a second cached run costs milliseconds whatever its size. With
-``cache=False`` every run is ingested into an in-memory catalog instead.
+**The cache.** Each recording's catalog is a DuckDB file in the user's cache folder,
+keyed by the recording's content (``btlog.replay.cache``), attached read-only so SQL
+cannot damage it. Several runs are *attached*, not copied: opening a second cached run
+costs milliseconds whatever its size. When the cache folder cannot be written, the run
+is ingested in memory instead and ``notices`` says so; with ``cache=False`` every run is
+ingested into an in-memory catalog.
 
 **The state at a moment.** ``Run.state_at(moment)`` resolves the moment to a number of
 events (``btlog.replay.moments``) and reads one row of ``_snapshots``: the state every
@@ -33,14 +29,11 @@ Errors are ``ReplayError`` (unreadable recordings, unknown runs or nodes, bad SQ
 
 from __future__ import annotations
 
-import hashlib
 import os
 import re
-import uuid
 from bisect import bisect_right
 from collections import OrderedDict
 from collections.abc import Sequence
-from concurrent.futures import ThreadPoolExecutor
 from dataclasses import dataclass
 from datetime import datetime
 from pathlib import Path
@@ -49,8 +42,8 @@ from typing import Any, NamedTuple
 import duckdb
 import orjson
 
-import btlog
 from btlog.record.reader import RecordingError
+from btlog.replay import cache
 from btlog.replay import ingest as ingestion
 from btlog.replay.moments import (
     BEFORE_END,
@@ -146,79 +139,12 @@ def open_runs(
 
 
 def cache_location(
-    recording: str | os.PathLike, cache_dir: str | os.PathLike | None = None
+    recording: str | os.PathLike,
+    cache_dir: str | os.PathLike | None = None,
+    snapshot_every: int = DEFAULT_SNAPSHOT_EVERY,
 ) -> Path:
-    """Where the cache of ``recording`` lives: ``cache_dir`` if given, else beside the
-    recording when its folder is writable, else the user's cache folder."""
-    path = Path(os.path.abspath(os.fspath(recording)))
-    if cache_dir is not None:
-        return Path(cache_dir) / _cache_name(path)
-    if os.access(path.parent, os.W_OK):
-        return path.with_name(path.name + CACHE_SUFFIX)
-    return user_cache_dir() / _cache_name(path)
-
-
-def user_cache_dir() -> Path:
-    """``$XDG_CACHE_HOME/btlog``, or ``~/.cache/btlog``."""
-    base = os.environ.get("XDG_CACHE_HOME") or os.path.join(os.path.expanduser("~"), ".cache")
-    return Path(base) / "btlog"
-
-
-def _cache_name(path: Path) -> str:
-    digest = hashlib.sha256(str(path).encode()).hexdigest()[:16]
-    return f"{path.name}-{digest}{CACHE_SUFFIX}"
-
-
-def _cache_key(path: str, snapshot_every: int) -> tuple:
-    stat = os.stat(path)
-    return (
-        path,
-        stat.st_size,
-        stat.st_mtime_ns,
-        btlog.SCHEMA_VERSION,
-        INGEST_VERSION,
-        snapshot_every,
-    )
-
-
-def _build_cache(path: str, cache: Path, snapshot_every: int) -> ingestion.IngestReport:
-    """Ingest ``path`` into a new cache file, moved into place when complete.
-
-    The tables are loaded in memory; then, while the snapshots are folded (Python, on
-    this thread), a worker thread writes the tables to the file (DuckDB, compressing
-    them in C++), so the two overlap; the snapshots follow them into the file.
-    """
-    cache.parent.mkdir(parents=True, exist_ok=True)
-    temporary = cache.with_name(f".{cache.name}.{os.getpid()}-{uuid.uuid4().hex[:8]}{CACHE_SUFFIX}")
-    con = duckdb.connect()
-    try:
-        con.execute("ATTACH $path AS cache_file", {"path": str(temporary)})
-        create_schema(con)
-        report = ingestion.load_tables(con, path, snapshot_every=snapshot_every)
-        with ThreadPoolExecutor(max_workers=1, thread_name_prefix="btlog-cache") as pool:
-            copying = pool.submit(_copy_tables, con.cursor())
-            try:
-                report = ingestion.add_snapshots(con, report)
-            finally:
-                copying.result()
-        for table in ("_snapshots", "_ingest"):
-            con.execute(f"DELETE FROM cache_file.{table}")
-            con.execute(f"INSERT INTO cache_file.{table} SELECT * FROM memory.{table}")
-        con.execute("DETACH cache_file")
-        os.replace(temporary, cache)
-    finally:
-        con.close()
-        for leftover in (temporary, Path(f"{temporary}.wal")):
-            leftover.unlink(missing_ok=True)
-    return report
-
-
-def _copy_tables(cursor: duckdb.DuckDBPyConnection) -> None:
-    """Copy the in-memory database (types and tables) into the attached cache file."""
-    try:
-        cursor.execute("COPY FROM DATABASE memory TO cache_file")
-    finally:
-        cursor.close()
+    """Where the cache of ``recording`` (as its content is now) lives."""
+    return cache.cache_path(recording, snapshot_every, cache_dir)
 
 
 # -- the database ---------------------------------------------------------------------------
@@ -229,7 +155,10 @@ class RunDatabase:
         self.con = duckdb.connect()
         self.snapshot_every = snapshot_every
         self.ingested: list[ingestion.IngestReport] = []
+        #: one-line notices for the user (e.g. a cache folder that cannot be written)
+        self.notices: list[str] = []
         self._runs: list[Run] = []
+        self._attached: set[Path] = set()
 
     # -- adding runs ---------------------------------------------------------------------
     def add(
@@ -252,48 +181,54 @@ class RunDatabase:
             raise ReplayError(f"{name}: cannot read: {error.strerror or error}") from None
         except duckdb.Error as error:
             raise ReplayError(f"{name}: cannot build its read model: {_one_line(error)}") from None
-        run = Run(self, catalog, self._unique_id(catalog))
+        run = Run(self, catalog, self._unique_id(catalog), name)
         self._runs.append(run)
         self._create_views()
         return run
 
-    def _attach_cached(self, path: str, catalog: str, cache_dir) -> None:
-        """Attach the recording's cache, (re)building it first unless it is current. A
-        cache that could not be written beside the recording lives in the user's cache
-        folder instead; both places are looked at before anything is built."""
-        key = _cache_key(path, self.snapshot_every)
-        places = [cache_location(path, cache_dir)]
-        fallback = user_cache_dir() / _cache_name(Path(path))
-        if cache_dir is None and fallback != places[0]:
-            places.append(fallback)
-        if any(self._attach_if_current(place, catalog, key) for place in places):
+    def _attach_cached(self, path: str, catalog: str, cache_dir: str | os.PathLike | None) -> None:
+        """Attach the recording's cache, building it first unless it exists. When the
+        cache folder cannot be written, the run is ingested in memory (with a notice)."""
+        root = cache.cache_root(cache_dir)
+        for folder in (root, Path(path).parent):
+            cache.remove_leftovers(folder)
+        place = cache.cache_path(path, self.snapshot_every, cache_dir)
+        if self._attach_if_current(place, catalog, path):
+            cache.touch(place)
             return
-        for number, place in enumerate(places, 1):
-            try:
-                self.ingested.append(_build_cache(path, place, self.snapshot_every))
-            except (OSError, duckdb.IOException):
-                if number == len(places):
-                    raise
-                continue
-            self.con.execute(f"ATTACH $path AS {catalog} (READ_ONLY)", {"path": str(place)})
+        try:
+            self.ingested.append(cache.build(path, place, self.snapshot_every))
+        except (OSError, duckdb.IOException) as error:
+            if not os.access(path, os.R_OK):
+                raise
+            reason = getattr(error, "strerror", None) or _one_line(error)
+            self.notices.append(
+                f"cannot write the cache folder {root} ({reason}); "
+                f"{Path(path).name} is read into memory instead"
+            )
+            self._ingest_in_memory(path, catalog)
             return
+        self.con.execute(f"ATTACH $path AS {catalog} (READ_ONLY)", {"path": str(place)})
+        self._attached.add(place)
+        cache.evict(root, cache.max_bytes(), self._attached)
 
-    def _attach_if_current(self, cache: Path, catalog: str, key: tuple) -> bool:
-        """Attach ``cache`` if it exists and was built from this very recording."""
-        if not cache.is_file():
+    def _attach_if_current(self, place: Path, catalog: str, path: str) -> bool:
+        """Attach the cache ``place`` if it exists and is complete and current (its
+        name holds the recording's hash; the layout and interval are checked here)."""
+        if not place.is_file():
             return False
         try:
-            self.con.execute(f"ATTACH $path AS {catalog} (READ_ONLY)", {"path": str(cache)})
+            self.con.execute(f"ATTACH $path AS {catalog} (READ_ONLY)", {"path": str(place)})
         except duckdb.Error:
             return False
         try:
             rows = self.con.execute(
-                f"SELECT file, size, mtime_ns, schema_version, ingest_version, "
-                f"snapshot_every FROM {catalog}._ingest"
+                f"SELECT size, ingest_version, snapshot_every FROM {catalog}._ingest"
             ).fetchall()
         except duckdb.Error:
             rows = []
-        if rows == [key]:
+        if rows == [(os.stat(path).st_size, INGEST_VERSION, self.snapshot_every)]:
+            self._attached.add(place)
             return True
         self.con.execute(f"DETACH {catalog}")
         return False
@@ -328,7 +263,8 @@ class RunDatabase:
         """The public tables as views over every run's catalog (run ids made unique)."""
         for table in PUBLIC_TABLES:
             parts = [
-                f"SELECT * REPLACE ('{run.run_id}' AS run_id) FROM {run.catalog}.{table}"
+                f"SELECT * REPLACE ('{run.run_id}' AS run_id{_file_column(table, run)}) "
+                f"FROM {run.catalog}.{table}"
                 for run in self._runs
             ]
             self.con.execute(
@@ -383,6 +319,14 @@ class RunDatabase:
         self.close()
 
 
+def _file_column(table: str, run: Run) -> str:
+    """The ``runs`` table names the recording as opened now (a cache is shared by every
+    copy of a recording)."""
+    if table != "runs":
+        return ""
+    return ", '" + run.info.file.replace("'", "''") + "' AS file"
+
+
 def _one_line(error: BaseException) -> str:
     return " ".join(str(error).split())
 
@@ -397,7 +341,7 @@ class Run:
 
     CACHED_BLOCKS = 8
 
-    def __init__(self, database: RunDatabase, catalog: str, run_id: str) -> None:
+    def __init__(self, database: RunDatabase, catalog: str, run_id: str, path: str) -> None:
         self.con = database.con
         self.catalog = catalog
         self.run_id = run_id
@@ -411,7 +355,7 @@ class Run:
         self.snapshot_every = every
         self.tree = Tree.from_description(orjson.loads(tree))
         self.mutations = load_mutations(self.con, self._stored_id, self._prefix)
-        self.info = self._info(events, last_tick, truncated, orjson.loads(warnings))
+        self.info = self._info(path, events, last_tick, truncated, orjson.loads(warnings))
         rows = self.con.execute(
             f"SELECT first_t_ns, first_tick FROM {catalog}._snapshots WHERE run_id = $run_id "
             f"ORDER BY seq",
@@ -435,16 +379,20 @@ class Run:
             zone,
         )
 
-    def _info(self, events: int, last_tick: int, truncated: bool, warnings: list) -> RunInfo:
+    def _info(
+        self, path: str, events: int, last_tick: int, truncated: bool, warnings: list
+    ) -> RunInfo:
+        """The run's info, naming the recording as opened now (the cache may have been
+        built from a copy of it elsewhere)."""
         row = first_row(
             self.con,
             f"SELECT file, tree_name, started_at, duration_ns, final_status, domain, "
             f"seed, metadata FROM {self.catalog}.runs",
         )
-        file, tree_name, started_at, duration, final, domain, seed, metadata = row
+        built_from, tree_name, started_at, duration, final, domain, seed, metadata = row
         return RunInfo(
             self.run_id,
-            file,
+            path,
             tree_name,
             started_at,
             duration,
@@ -454,7 +402,7 @@ class Run:
             events,
             last_tick,
             truncated,
-            tuple(warnings),
+            tuple(warning.replace(built_from, path) for warning in warnings),
             orjson.loads(metadata),
         )
 
@@ -668,5 +616,4 @@ __all__ = [
     "TimelineEntry",
     "cache_location",
     "open_runs",
-    "user_cache_dir",
 ]

@@ -1,0 +1,206 @@
+"""The read model's cache: one DuckDB file per recording *content*, in the user's cache folder.
+
+Ingesting a long run costs seconds, so each recording's read model is kept as a DuckDB
+file in the cache folder (never beside the recording): ``--cache-dir``/``cache_dir``, else
+``$BTLOG_CACHE_DIR``, else ``$XDG_CACHE_HOME/btlog``, else ``~/.cache/btlog``. A cache is
+named by the SHA-256 of the recording's bytes, the cache format (the read model's layout
+version and btlog's version) and the snapshot interval, so:
+
+- a recording replaced by another — even of the same size and mtime — never meets the
+  old cache, and a moved or copied recording reuses its cache;
+- two btlog versions never share a file.
+
+Hashing reads the whole file once per open (~0.9 GB/s here; see ``benchmarks/``). A cache
+is built under a temporary name holding the builder's pid and moved into place when
+complete; the leftovers of a killed build (its pid gone) are removed on the next open.
+Using a cache touches its mtime, and after a build the least recently used caches are
+evicted until the folder is under its size cap (``$BTLOG_CACHE_MAX_MB``, default 2048).
+"""
+
+from __future__ import annotations
+
+import contextlib
+import hashlib
+import os
+import re
+import uuid
+from concurrent.futures import ThreadPoolExecutor
+from dataclasses import dataclass
+from pathlib import Path
+
+import duckdb
+
+import btlog
+from btlog.replay import ingest as ingestion
+from btlog.replay.tables import INGEST_VERSION, create_schema
+
+SUFFIX = ".duckdb"
+#: The default size cap of the cache folder, in MB (``$BTLOG_CACHE_MAX_MB`` overrides).
+DEFAULT_MAX_MB = 2048
+#: A temporary cache of a build in progress: ``.<name>.<pid>-<hex>.duckdb`` (+ ``.wal``).
+_TEMPORARY = re.compile(r"^\..+\.(\d+)-[0-9a-f]{8}\.duckdb(\.wal)?$")
+
+
+def cache_root(cache_dir: str | os.PathLike | None = None) -> Path:
+    """The cache folder: ``cache_dir``, else ``$BTLOG_CACHE_DIR``, else
+    ``$XDG_CACHE_HOME/btlog``, else ``~/.cache/btlog``."""
+    if cache_dir is not None:
+        return Path(cache_dir)
+    if os.environ.get("BTLOG_CACHE_DIR"):
+        return Path(os.environ["BTLOG_CACHE_DIR"])
+    base = os.environ.get("XDG_CACHE_HOME") or os.path.join(os.path.expanduser("~"), ".cache")
+    return Path(base) / "btlog"
+
+
+def content_hash(path: str | os.PathLike) -> str:
+    """The SHA-256 of the file's bytes (hex)."""
+    with open(path, "rb") as file:
+        return hashlib.file_digest(file, "sha256").hexdigest()
+
+
+def cache_format() -> str:
+    """What a cache's layout depends on besides the recording: layout and btlog versions."""
+    return f"f{INGEST_VERSION}-v{btlog.__version__}"
+
+
+def cache_path(
+    recording: str | os.PathLike, snapshot_every: int, cache_dir: str | os.PathLike | None = None
+) -> Path:
+    """Where the cache of ``recording`` (as it is now) lives."""
+    digest = content_hash(recording)[:32]
+    return cache_root(cache_dir) / f"{digest}-{cache_format()}-k{snapshot_every}{SUFFIX}"
+
+
+@dataclass(frozen=True)
+class CacheEntry:
+    """One cache file: its path, size in bytes and last use (mtime, ns)."""
+
+    path: Path
+    size: int
+    last_used_ns: int
+
+
+def entries(root: Path) -> list[CacheEntry]:
+    """The cache files of ``root``, least recently used first (temporaries excluded)."""
+    found = []
+    if root.is_dir():
+        for path in root.glob(f"*{SUFFIX}"):
+            try:
+                stat = path.stat()
+            except OSError:
+                continue
+            found.append(CacheEntry(path, stat.st_size, stat.st_mtime_ns))
+    return sorted(found, key=lambda entry: entry.last_used_ns)
+
+
+def clear(root: Path) -> tuple[int, int]:
+    """Remove every cache file (and leftover) of ``root``; (files removed, bytes freed)."""
+    removed = freed = 0
+    if not root.is_dir():
+        return 0, 0
+    for path in root.iterdir():
+        if path.name.endswith((SUFFIX, f"{SUFFIX}.wal")) and path.is_file():
+            size = path.stat().st_size
+            path.unlink(missing_ok=True)
+            removed, freed = removed + 1, freed + size
+    return removed, freed
+
+
+def touch(cache: Path) -> None:
+    """Mark ``cache`` as just used (its mtime orders the eviction)."""
+    with contextlib.suppress(OSError):
+        os.utime(cache)
+
+
+def max_bytes() -> int:
+    """The size cap of the cache folder (``$BTLOG_CACHE_MAX_MB``, default 2048 MB)."""
+    text = os.environ.get("BTLOG_CACHE_MAX_MB", "")
+    try:
+        megabytes = float(text) if text else DEFAULT_MAX_MB
+    except ValueError:
+        megabytes = DEFAULT_MAX_MB
+    return int(max(megabytes, 0) * (1 << 20))
+
+
+def evict(root: Path, limit: int, keep: set[Path]) -> list[Path]:
+    """Remove the least recently used caches until ``root`` holds at most ``limit``
+    bytes; caches in ``keep`` (attached now) stay. Returns the removed files."""
+    found = entries(root)
+    total = sum(entry.size for entry in found)
+    removed = []
+    for entry in found:
+        if total <= limit:
+            break
+        if entry.path in keep:
+            continue
+        entry.path.unlink(missing_ok=True)
+        Path(f"{entry.path}.wal").unlink(missing_ok=True)
+        total -= entry.size
+        removed.append(entry.path)
+    return removed
+
+
+def remove_leftovers(folder: Path) -> list[Path]:
+    """Remove the temporary files of cache builds whose process is gone (killed)."""
+    removed = []
+    if not folder.is_dir():
+        return removed
+    for path in folder.iterdir():
+        match = _TEMPORARY.match(path.name)
+        if match and not _alive(int(match.group(1))):
+            with contextlib.suppress(OSError):
+                path.unlink(missing_ok=True)
+                removed.append(path)
+    return removed
+
+
+def _alive(pid: int) -> bool:
+    if pid == os.getpid():
+        return True
+    try:
+        os.kill(pid, 0)
+    except ProcessLookupError:
+        return False
+    except OSError:
+        return True  # exists, owned by someone else
+    return True
+
+
+def build(path: str, cache: Path, snapshot_every: int) -> ingestion.IngestReport:
+    """Ingest ``path`` into a new cache file, moved into place when complete.
+
+    The tables are loaded in memory; then, while the snapshots are folded (Python, on
+    this thread), a worker thread writes the tables to the file (DuckDB, compressing
+    them in C++), so the two overlap; the snapshots follow them into the file.
+    """
+    cache.parent.mkdir(parents=True, exist_ok=True)
+    temporary = cache.with_name(f".{cache.name}.{os.getpid()}-{uuid.uuid4().hex[:8]}{SUFFIX}")
+    con = duckdb.connect()
+    try:
+        con.execute("ATTACH $path AS cache_file", {"path": str(temporary)})
+        create_schema(con)
+        report = ingestion.load_tables(con, path, snapshot_every=snapshot_every)
+        with ThreadPoolExecutor(max_workers=1, thread_name_prefix="btlog-cache") as pool:
+            copying = pool.submit(_copy_tables, con.cursor())
+            try:
+                report = ingestion.add_snapshots(con, report)
+            finally:
+                copying.result()
+        for table in ("_snapshots", "_ingest"):
+            con.execute(f"DELETE FROM cache_file.{table}")
+            con.execute(f"INSERT INTO cache_file.{table} SELECT * FROM memory.{table}")
+        con.execute("DETACH cache_file")
+        os.replace(temporary, cache)
+    finally:
+        con.close()
+        for leftover in (temporary, Path(f"{temporary}.wal")):
+            leftover.unlink(missing_ok=True)
+    return report
+
+
+def _copy_tables(cursor: duckdb.DuckDBPyConnection) -> None:
+    """Copy the in-memory database (types and tables) into the attached cache file."""
+    try:
+        cursor.execute("COPY FROM DATABASE memory TO cache_file")
+    finally:
+        cursor.close()
