@@ -1,5 +1,5 @@
 """``btlog cache`` (list or clear the read model's caches) and the ``--cache-dir`` option
-of every command that reads recordings through the read model."""
+of every command that reads recordings through the read model (``btlog.replay.cache``)."""
 
 from __future__ import annotations
 
@@ -9,8 +9,6 @@ import os
 from collections.abc import Iterator
 from contextlib import contextmanager
 from datetime import datetime
-
-from btlog.replay import cache
 
 #: Commands that open recordings through the read model (and so take ``--cache-dir``).
 READING_COMMANDS = ("ask", "explain", "show", "timeline", "replay", "sql", "check")
@@ -24,7 +22,7 @@ def add_parsers(commands: argparse._SubParsersAction) -> None:
         description="List the read model's cache files (size, last use) or remove them. "
         "Caches live in $BTLOG_CACHE_DIR, else $XDG_CACHE_HOME/btlog, else ~/.cache/btlog; "
         "they are keyed by the recording's content and capped at $BTLOG_CACHE_MAX_MB "
-        f"(default {cache.DEFAULT_MAX_MB}), least recently used evicted first.",
+        "(default 2048), least recently used evicted first.",
     )
     parser.add_argument("--clear", action="store_true", help="remove every cache file")
     parser.add_argument("--json", action="store_true", help="JSON output")
@@ -63,6 +61,8 @@ def cache_dir_of(args: argparse.Namespace) -> Iterator[None]:
 
 def cache_command(args: argparse.Namespace) -> int:
     """``btlog cache``: list the cache files and their total, or remove them."""
+    from btlog.replay import cache  # DuckDB is imported only by commands that use it
+
     root = cache.cache_root()
     if args.clear:
         removed, freed = cache.clear(root)
