@@ -1,9 +1,13 @@
-"""Live answers equal post-hoc answers, at every event boundary.
+"""Live answers equal post-hoc answers, at every event boundary, for every question.
 
 During a recorded run a subscriber answers every question after each event, from the
-live state projection; afterwards the recording alone (MCAP → DuckDB → snapshot + tail)
-must give the same answers at ``seq:N`` for every N. Random trees come from the
-differential test's generator; random outcomes from hypothesis.
+live state projection and the live history (``LiveHistory``); afterwards the recording
+alone (MCAP → DuckDB → snapshot + tail, and the read model's history) must give the same
+answers at ``seq:N`` for every N. The questions about a node X are asked about a few
+nodes of the tree (hypothesis picks them). The read model's history of a short run is
+queried in memory; at a sample of events the same answers must also come from its SQL
+statements. Random trees come from the differential test's generator; random outcomes
+from hypothesis.
 """
 
 from __future__ import annotations
@@ -16,10 +20,11 @@ from hypothesis import strategies as st
 from btlog.domains.outcomes import Outcomes, scripted_leaf_factory
 from btlog.events import Subscriber
 from btlog.executor.engine import Executor
-from btlog.explain.questions import QUESTIONS, answer
+from btlog.explain.questions import NODE_INTENTS, QUESTIONS, answer
+from btlog.history import LiveHistory
 from btlog.record.recorder import Recorder
 from btlog.replay.database import open_runs
-from btlog.state import StateProjection
+from btlog.replay.sql_history import SqlHistory
 from btlog.tree.loader import load_tree, load_tree_text
 from btlog.tree.model import CONDITION
 from btlog.tree.registry import NodeType, Registry
@@ -27,22 +32,29 @@ from tests.oracle.random_trees import generate
 
 ROOT = Path(__file__).resolve().parent.parent
 KITTING = ROOT / "trees" / "kitting.xml"
-ASKED = [q for intent, q in QUESTIONS.items() if intent != "can"] + [
-    "Can you insert large gear?",
-    "Can you detect chuck?",
-]
+PLAIN = [q for intent, q in QUESTIONS.items() if "X" not in q]
+ABOUT_X = [q for intent, q in QUESTIONS.items() if intent in NODE_INTENTS]
+KITTING_ASKED = [*PLAIN, "Can you insert large gear?", "Can you detect chuck?"]
+#: Check the SQL statements (not only the in-memory index) at every n-th event.
+SQL_EVERY = 20
+
+
+def questions_about(names: list[str]) -> list[str]:
+    """Every question, those about X asked about each of ``names``."""
+    return PLAIN + [q.replace("X", name) for name in names for q in ABOUT_X]
 
 
 class AnswerEveryEvent(Subscriber):
     """After each event, every question's live answer (keyed by the event's seq)."""
 
-    def __init__(self, projection: StateProjection) -> None:
+    def __init__(self, projection: LiveHistory, asked: list[str]) -> None:
         self.projection = projection
+        self.asked = asked
         self.answers: dict[int, list[str]] = {}
 
     def _record(self, seq: int) -> None:
         tree, state = self.projection.tree, self.projection.state
-        self.answers[seq] = [answer(tree, state, q).text for q in ASKED]
+        self.answers[seq] = [answer(tree, state, q, self.projection).text for q in self.asked]
 
     def on_status(self, seq, *args) -> None:
         self._record(seq)
@@ -51,12 +63,14 @@ class AnswerEveryEvent(Subscriber):
         self._record(seq)
 
 
-def record_with_live_answers(tree, outcomes: Outcomes, path: Path, max_ticks: int):
+def record_with_live_answers(
+    tree, outcomes: Outcomes, path: Path, max_ticks: int, asked: list[str]
+) -> dict[int, list[str]]:
     """Run and record; returns the live answers after every event."""
     executor = Executor(tree, leaf_factory=scripted_leaf_factory(tree, outcomes, seed=3))
     recorder = Recorder(path, tree, {"domain": "scripted"}, flush_interval=0)
-    projection = StateProjection(tree)
-    live = AnswerEveryEvent(projection)
+    projection = LiveHistory(tree)
+    live = AnswerEveryEvent(projection, asked)
     for subscriber in (recorder, projection, live):
         executor.subscribe(subscriber)
     executor.run(max_ticks)
@@ -64,13 +78,16 @@ def record_with_live_answers(tree, outcomes: Outcomes, path: Path, max_ticks: in
     return live.answers
 
 
-def assert_post_hoc_equals_live(path: Path, live: dict[int, list[str]]) -> None:
+def assert_post_hoc_equals_live(path: Path, live: dict[int, list[str]], asked: list[str]) -> None:
     database = open_runs(path, cache=False)
     try:
         run = database.run(str(path))
+        memory, sql = SqlHistory(run, in_memory=True), SqlHistory(run, in_memory=False)
         for seq, expected in live.items():
             tree, state = run.state_at(f"seq:{seq}")
-            assert [answer(tree, state, q).text for q in ASKED] == expected, f"seq {seq}"
+            assert [answer(tree, state, q, memory).text for q in asked] == expected, f"seq {seq}"
+            if seq % SQL_EVERY == 0:
+                assert [answer(tree, state, q, sql).text for q in asked] == expected, f"seq {seq}"
     finally:
         database.close()
 
@@ -92,20 +109,24 @@ names = [
 
 
 @settings(
-    max_examples=8,
+    max_examples=5,
     deadline=None,
     suppress_health_check=[HealthCheck.too_slow, HealthCheck.function_scoped_fixture],
 )
-@given(st.dictionaries(st.sampled_from(names), st.lists(entry, min_size=1, max_size=3), max_size=4))
-def test_kitting_live_equals_post_hoc(tmp_path_factory, scripts) -> None:
+@given(
+    st.dictionaries(st.sampled_from(names), st.lists(entry, min_size=1, max_size=3), max_size=4),
+    st.lists(st.sampled_from([*names, "go insert large gear", "insert large gear"]), max_size=2),
+)
+def test_kitting_live_equals_post_hoc(tmp_path_factory, scripts, about) -> None:
     tree = load_tree(KITTING)
+    asked = KITTING_ASKED + questions_about(about)[len(PLAIN) :]
     outcomes = Outcomes.from_mapping(
         {"default": {"status": "SUCCESS", "ticks": 1}, "nodes": scripts}
     )
     path = tmp_path_factory.mktemp("live") / "run.mcap"
-    live = record_with_live_answers(tree, outcomes, path, max_ticks=400)
+    live = record_with_live_answers(tree, outcomes, path, max_ticks=400, asked=asked)
     assert live
-    assert_post_hoc_equals_live(path, live)
+    assert_post_hoc_equals_live(path, live, asked)
 
 
 @settings(
@@ -113,14 +134,16 @@ def test_kitting_live_equals_post_hoc(tmp_path_factory, scripts) -> None:
     deadline=None,
     suppress_health_check=[HealthCheck.too_slow, HealthCheck.function_scoped_fixture],
 )
-@given(st.integers(0, 10_000))
-def test_random_trees_live_equals_post_hoc(tmp_path_factory, seed) -> None:
+@given(st.integers(0, 10_000), st.randoms(use_true_random=False))
+def test_random_trees_live_equals_post_hoc(tmp_path_factory, seed, rng) -> None:
     case = generate(seed)
     registry = Registry()
     registry.register(NodeType("ScriptedCondition", CONDITION, declared_only=True))
     tree = load_tree_text(case.xml, registry)
+    about = rng.sample(sorted({n.description for n in tree}), 3)
     path = tmp_path_factory.mktemp("random") / "run.mcap"
+    asked = questions_about(about)
     live = record_with_live_answers(
-        tree, Outcomes.from_mapping(case.outcomes), path, case.max_ticks
+        tree, Outcomes.from_mapping(case.outcomes), path, case.max_ticks, asked
     )
-    assert_post_hoc_equals_live(path, live)
+    assert_post_hoc_equals_live(path, live, asked)

@@ -27,8 +27,8 @@ from btlog.events import Subscriber
 from btlog.executor.clock import SimClock, WallClock
 from btlog.executor.engine import Executor
 from btlog.explain.questions import Answer, answer, parse_question
+from btlog.history import LiveHistory
 from btlog.record.recorder import Recorder
-from btlog.state import StateProjection
 from btlog.status import Status
 from btlog.tree.loader import load_nodes_model, load_tree
 from btlog.tree.model import Tree
@@ -188,7 +188,8 @@ class RunResult:
 
 
 class LiveQuestions(Subscriber):
-    """Answers the run's live questions at tick boundaries from a live state projection."""
+    """Answers the run's live questions at tick boundaries from the live state projection
+    and history."""
 
     def __init__(
         self,
@@ -201,7 +202,7 @@ class LiveQuestions(Subscriber):
         self.pending = list(questions)
         self.recorder = recorder
         self.on_answer = on_answer
-        self.projection = StateProjection(executor.tree)
+        self.projection = LiveHistory(executor.tree)
         self.answered: list[tuple[LiveQuestion, Answer, int]] = []
         executor.subscribe(self.projection)
 
@@ -212,12 +213,14 @@ class LiveQuestions(Subscriber):
             next_ns = executor.runtime.clock.now_ns()
         for question in [q for q in self.pending if q.due(executor, next_ns)]:
             self.pending.remove(question)
-            self.ask(question)
+            self.ask(question, next_ns)
 
-    def ask(self, question: LiveQuestion) -> Answer:
-        """Answer now; a "Can you …?" with a plan changes the running tree."""
+    def ask(self, question: LiveQuestion, at_ns: int | None = None) -> Answer:
+        """Answer now (``at_ns``: the run's time); a "Can you …?" with a plan changes the
+        running tree."""
         state = self.projection.state
-        result = answer(self.projection.tree, state, question.question)
+        tree, history = self.projection.tree, self.projection
+        result = answer(tree, state, question.question, history, at_ns)
         seq = self.executor.seq
         if result.insertion is not None:
             plan = result.insertion

@@ -296,7 +296,7 @@ class StoredRun:
     def answer(self, at: str, question: str) -> str:
         """The answer to ``question`` at moment ``at``."""
         tree, state = self.state_at(at)
-        return answer(tree, state, question).text
+        return answer(tree, state, question, self._run.history()).text
 
     def status(self, at: str, node: str) -> str:
         """The status name of ``node`` (name, type or path) at moment ``at``."""

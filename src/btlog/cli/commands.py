@@ -8,6 +8,8 @@ import json
 import sys
 from argparse import Namespace
 from collections import Counter
+from collections.abc import Iterator
+from contextlib import contextmanager
 from pathlib import Path
 
 from rich.progress import BarColumn, Progress, TextColumn, TimeElapsedColumn
@@ -109,13 +111,17 @@ def _open_run(path: str):
     return database, database.run(path)
 
 
-def _state(path: str, moment: str):
+@contextmanager
+def _moment(path: str, moment: str) -> Iterator[tuple]:
+    """(run, tree, state, time) at a moment of a recording, while its read model is
+    open."""
     database, run = _open_run(path)
     try:
-        tree, state = run.state_at(moment)
+        resolved = run.resolve(moment)
+        tree, state = run.state_after(resolved.count)
+        yield run, tree, state, resolved.t_ns
     finally:
         database.close()
-    return tree, state
 
 
 def _moment_json(state, moment: str) -> dict:
@@ -124,8 +130,8 @@ def _moment_json(state, moment: str) -> dict:
 
 def ask(args: Namespace) -> int:
     """``btlog ask``: one answer at a moment (Q7 shows the tree it would give)."""
-    tree, state = _state(args.run, args.at)
-    result = answer(tree, state, args.question)
+    with _moment(args.run, args.at) as (run, tree, state, at_ns):
+        result = answer(tree, state, args.question, run.history(), at_ns)
     if args.json:
         _print_json({**result.to_json(), "moment": _moment_json(state, args.at)})
         return 0
@@ -142,13 +148,9 @@ def ask(args: Namespace) -> int:
 
 def explain(args: Namespace) -> int:
     """``btlog explain``: Q1–Q6 at a moment, and what the recording says is missing."""
-    database, run = _open_run(args.run)
-    try:
-        tree, state = run.state_at(args.at)
+    with _moment(args.run, args.at) as (run, tree, state, _at_ns):
+        answers = explain_all(tree, state, run.history())
         notes = [run.info.metadata["incomplete"]] if run.info.metadata.get("incomplete") else []
-    finally:
-        database.close()
-    answers = explain_all(tree, state)
     if args.json:
         _print_json(
             {
@@ -167,15 +169,14 @@ def explain(args: Namespace) -> int:
 
 def show(args: Namespace) -> int:
     """``btlog show``: the tree with each node's status at a moment."""
-    tree, state = _state(args.run, args.at)
-    current = {n.uid for n in current_nodes(tree, state)}
+    with _moment(args.run, args.at) as (run, tree, state, _at_ns):
+        current = {n.uid for n in current_nodes(tree, state)}
+        answers = explain_all(tree, state, run.history()) if args.html else []
     if args.html:
         from btlog.render.html import page
 
         title = f"{Path(args.run).name} at {args.at}"
-        Path(args.html).write_text(
-            page(title, tree, state, current, explain_all(tree, state)), encoding="utf-8"
-        )
+        Path(args.html).write_text(page(title, tree, state, current, answers), encoding="utf-8")
         print(safe(args.html))
         return 0
     console = make_console(args.plain)

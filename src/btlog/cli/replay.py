@@ -77,7 +77,7 @@ class Stepper:
         if self.show_blackboard:
             for line in blackboard_lines(state) or ["(the blackboard is empty)"]:
                 console.print(line)
-        for result in explain(tree, state):
+        for result in explain(tree, state, self.run.history()):
             console.print(f"{result.question}  {safe(result.text)}", highlight=False)
 
 
@@ -125,7 +125,8 @@ def _apply(stepper: Stepper, line: str) -> bool:
     elif word == "ask":
         tree, state = stepper.state()
         stepper.console.print(
-            answer(tree, state, parts[1] if len(parts) > 1 else "").text, highlight=False
+            answer(tree, state, parts[1] if len(parts) > 1 else "", stepper.run.history()).text,
+            highlight=False,
         )
     elif word == "g" and len(parts) > 1:
         stepper.go(parts[1])

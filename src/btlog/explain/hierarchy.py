@@ -9,6 +9,8 @@ returns the sentence of the paper's templates; ``d(n)`` is ``Node.description``.
 
 from __future__ import annotations
 
+from collections.abc import Callable
+
 from btlog.state import State
 from btlog.status import IDLE, RUNNING
 from btlog.tree.model import DECORATOR, SUBTREE, Node, Tree
@@ -23,6 +25,19 @@ def current_nodes(tree: Tree, state: State) -> list[Node]:
     if state.last_leaf is not None and state.last_leaf in tree.nodes:
         return [tree.node(state.last_leaf)]
     return []
+
+
+def join_answers(texts: list[str]) -> str:
+    """Distinct answers joined with " and " (one answer per current node)."""
+    distinct = list(dict.fromkeys(texts))
+    if len(distinct) == 1:
+        return distinct[0]
+    return " and ".join(t.rstrip(".") for t in distinct[:-1]) + " and " + distinct[-1]
+
+
+def per_node(nodes: list[Node], render: Callable[[Node], str], empty: str) -> str:
+    """``render`` for each current node, joined; ``empty`` when there is none."""
+    return join_answers([render(n) for n in nodes]) if nodes else empty
 
 
 def doing(node: Node) -> str:

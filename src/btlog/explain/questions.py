@@ -1,9 +1,12 @@
 """Questions in, answers out: one entry point for live and post-hoc explanations.
 
-``answer(tree, state, question)`` recognises the question (case-insensitive, the paper's
-phrasings and common paraphrases), finds the current node(s) in ``state`` and runs the
-paper's algorithm. It is a pure function of (tree, state): the executor's live view and
-a replay from a recording pass their own (equal) states to the same code.
+``answer(tree, state, question, history)`` recognises the question (case-insensitive,
+the paper's phrasings and common paraphrases), finds the current node(s) in ``state``
+and runs the paper's algorithm, or one of the history questions (``btlog.explain.causes``,
+``flow``, ``recall``). It is a pure function of (tree, state, history): the executor's
+live view (``LiveHistory``) and a recording's read model (``SqlHistory``) pass their own
+(equal) states and histories to the same code. Without a history, the questions about
+the past answer from the moment alone (Q6 is then Algorithm 7 only).
 
 With several running nodes (under a Parallel) each gets an answer; distinct answers are
 joined with " and ".
@@ -12,12 +15,23 @@ joined with " and ".
 from __future__ import annotations
 
 import re
-from collections.abc import Callable
 from dataclasses import dataclass, field
 
-from btlog.explain.failure import what_went_wrong
-from btlog.explain.hierarchy import current_nodes, doing, goal, how, subgoal, subgoal_node, why
+from btlog.explain.causes import last_completion, what_went_wrong_over_history
+from btlog.explain.flow import entry, next_sentence
+from btlog.explain.hierarchy import (
+    current_nodes,
+    doing,
+    goal,
+    how,
+    per_node,
+    subgoal,
+    subgoal_node,
+    why,
+)
 from btlog.explain.insertion import InsertionPlan, plan_insertion
+from btlog.explain.recall import find_node, how_long, when_last, why_failed, why_not
+from btlog.history import History
 from btlog.state import State
 from btlog.tree.model import Node, Tree
 
@@ -30,7 +44,16 @@ QUESTIONS = {
     "how_goal": "How do you achieve your goal?",
     "wrong": "What went wrong?",
     "can": "Can you X?",
+    "next": "What will you do next?",
+    "why_failed": "Why did X fail?",
+    "why_not": "Why didn't you X?",
+    "when_fail": "When did X last fail?",
+    "when_succeed": "When did X last succeed?",
+    "when_start": "When did X last start?",
+    "how_long": "How long did X take?",
 }
+#: Questions about one node X (``{X}`` in the templates).
+NODE_INTENTS = ("why_failed", "why_not", "when_fail", "when_succeed", "when_start", "how_long")
 #: The questions of ``explain`` (Q1–Q6), in order.
 EXPLAIN_INTENTS = ("doing", "why", "subgoal", "goal", "how_subgoal", "how_goal", "wrong")
 
@@ -38,6 +61,26 @@ _YOU = r"(?:you|u)"
 _PATTERNS: list[tuple[str, re.Pattern]] = [
     (intent, re.compile(p))
     for intent, p in [
+        ("next", rf"^what (?:will|are|r) {_YOU} (?:do|doing|going to do|gonna do) next$"),
+        ("next", r"^what(?: is|'s|s)? (?:next|coming next|your next step)$"),
+        ("next", rf"^what (?:comes|happens|do {_YOU} do) next$"),
+        ("why_not", rf"^why (?:didn't|didnt|did not|haven't|havent|have not) {_YOU} (?P<what>.+)$"),
+        ("why_not", rf"^why did {_YOU} not (?P<what>.+)$"),
+        ("why_failed", rf"^why did {_YOU} fail (?:to )?(?P<what>.+)$"),
+        ("why_failed", r"^why (?:did|has|have) (?P<what>.+?) (?:fail|failed|not succeed)$"),
+        ("when_fail", r"^when did (?P<what>.+?) (?:last fail|fail last|fail)$"),
+        ("when_succeed", r"^when did (?P<what>.+?) (?:last succeed|succeed last|succeed)$"),
+        ("when_start", rf"^when did {_YOU} last (?P<what>.+)$"),
+        (
+            "when_start",
+            r"^when (?:did|was) (?P<what>.+?) (?:last start|start last|start|last run|last "
+            r"started|started|begin|last begin)$",
+        ),
+        ("how_long", r"^how long (?:did|has|does) (?P<what>.+?) (?:take|taken|run|been running)$"),
+        (
+            "how_long",
+            rf"^how long did (?:it take (?:{_YOU} )?to|{_YOU} take to|{_YOU}) (?P<what>.+)$",
+        ),
         ("can", rf"^(?:can|could|will|would) {_YOU} (?:please )?(?P<what>.+)$"),
         ("doing", rf"^what (?:are|r) {_YOU} (?:doing|up to)(?: now| right now)?$"),
         ("doing", r"^what is (?:happening|going on)(?: now)?$"),
@@ -114,41 +157,81 @@ def parse_question(question: str) -> tuple[str, str | None]:
     raise UnknownQuestion(question.strip())
 
 
-def _join(texts: list[str]) -> str:
-    distinct = list(dict.fromkeys(texts))
-    if len(distinct) == 1:
-        return distinct[0]
-    return " and ".join(t.rstrip(".") for t in distinct[:-1]) + " and " + distinct[-1]
-
-
-def _per_node(nodes: list[Node], render: Callable[[Node], str], empty: str) -> str:
-    return _join([render(n) for n in nodes]) if nodes else empty
-
-
-def answer(tree: Tree, state: State, question: str) -> Answer:
-    """Answer ``question`` about the moment ``state`` of a run of ``tree``."""
+def answer(
+    tree: Tree,
+    state: State,
+    question: str,
+    history: History | None = None,
+    at_ns: int | None = None,
+) -> Answer:
+    """Answer ``question`` about the moment ``state`` of a run of ``tree``, whose past
+    up to that moment ``history`` holds; ``at_ns`` is the moment's time when it is later
+    than the last event's (durations of running nodes are measured to it)."""
     intent, argument = parse_question(question)
+    if intent in NODE_INTENTS:
+        now_ns = state.t_ns if at_ns is None else max(at_ns, state.t_ns)
+        return _about_node(tree, state, history, question, intent, argument or "", now_ns)
     nodes = current_nodes(tree, state)
     uids = tuple(n.uid for n in nodes)
     if intent == "doing":
-        text = _per_node(nodes, doing, "I am not doing anything.")
+        text = per_node(nodes, doing, "I am not doing anything.")
     elif intent == "why":
-        text = _per_node(nodes, why, "I am not doing anything.")
+        text = per_node(nodes, why, "I am not doing anything.")
     elif intent == "subgoal":
-        text = _per_node(nodes, subgoal, "Sorry. I don't have a subgoal.")
+        text = per_node(nodes, subgoal, "Sorry. I don't have a subgoal.")
     elif intent == "goal":
         text = goal(tree)
     elif intent == "how_subgoal":
-        text = _per_node(
+        text = per_node(
             nodes, lambda n: how(subgoal_node(n), "subgoal"), "Sorry. I don't have a subgoal."
         )
     elif intent == "how_goal":
         text = how(tree.root, "goal")
     elif intent == "wrong":
-        text = _per_node(nodes, lambda n: what_went_wrong(n, state), "Nothing went wrong.")
+        text = what_went_wrong_over_history(tree, state, history)
+    elif intent == "next":
+        text = _next(tree, state, history, nodes)
     else:
         return _can(tree, nodes, question, argument or "")
     return Answer(question, intent, text, uids)
+
+
+def _next(tree: Tree, state: State, history: History | None, nodes: list[Node]) -> str:
+    """``What will you do next?`` for each current node."""
+    if history is not None and last_completion(tree.root, state, history) is not None:
+        return f"I have finished {tree.root.description}."
+    if not nodes:
+        first = dict.fromkeys(n.description for n in entry(tree.root, state))
+        return f"I will {' and '.join(first)} first."
+    return per_node(nodes, lambda n: next_sentence(tree, n, state, history), "")
+
+
+def _about_node(
+    tree: Tree,
+    state: State,
+    history: History | None,
+    question: str,
+    intent: str,
+    what: str,
+    now_ns: int,
+) -> Answer:
+    """The questions about one node X."""
+    node = find_node(tree, what)
+    if node is None:
+        return Answer(question, intent, f'Sorry. I don\'t know "{what.strip()}".')
+    if history is None:
+        from btlog.history import LiveHistory
+
+        history = LiveHistory(tree)  # no past known: an empty history
+    if intent == "why_failed":
+        text = why_failed(tree, node, state, history)
+    elif intent == "why_not":
+        text = why_not(tree, node, state, history)
+    elif intent == "how_long":
+        text = how_long(node, state, history, now_ns)
+    else:
+        text = when_last(node, intent.removeprefix("when_"), state, history)
+    return Answer(question, intent, text, (node.uid,))
 
 
 def _can(tree: Tree, nodes: list[Node], question: str, wanted: str) -> Answer:
@@ -162,6 +245,6 @@ def _can(tree: Tree, nodes: list[Node], question: str, wanted: str) -> Answer:
     return Answer(question, "can", text, (plan.source.uid,), plan)
 
 
-def explain(tree: Tree, state: State) -> list[Answer]:
+def explain(tree: Tree, state: State, history: History | None = None) -> list[Answer]:
     """Q1–Q6 together."""
-    return [answer(tree, state, QUESTIONS[intent]) for intent in EXPLAIN_INTENTS]
+    return [answer(tree, state, QUESTIONS[intent], history) for intent in EXPLAIN_INTENTS]

@@ -61,6 +61,7 @@ from btlog.replay.moments import (
     resolve_moment,
 )
 from btlog.replay.snapshots import DEFAULT_SNAPSHOT_EVERY, EventBatch, load_mutations
+from btlog.replay.sql_history import SqlHistory
 from btlog.replay.tables import INGEST_VERSION, PUBLIC_TABLES, create_schema, first_row
 from btlog.state import State, StateProjection
 from btlog.status import STATUS_NAMES, Status
@@ -408,6 +409,15 @@ class Run:
 
     def __repr__(self) -> str:
         return f"<Run {self.run_id} {self.info.file} {self.info.events} events>"
+
+    @property
+    def stored_id(self) -> str:
+        """The run id as stored in this run's own tables."""
+        return self._stored_id
+
+    def history(self) -> SqlHistory:
+        """The run's history for the explanations (queries on the read model)."""
+        return SqlHistory(self)
 
     # -- snapshot blocks -----------------------------------------------------------------
     def _block(self, index: int) -> tuple[dict, EventBatch]:

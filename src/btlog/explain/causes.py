@@ -1,0 +1,176 @@
+"""Causes over a run's history: why a node completed as it did, and Q6 over the history.
+
+**The causal chain.** A control node or decorator completes because one of its children
+completed: the one whose completion came last in the parent's activation (a Sequence
+fails when a child fails, a Fallback when its last child fails, a retry when its last
+attempt fails, an Inverter fails when its child succeeds). From a completion, following
+that child down, in event order, to an execution node gives the *cause*: the leaf whose
+result decided it. It is ``succeeded`` rather than ``failed`` when the leaf's SUCCESS
+was turned into a failure on the way up (an Inverter, a ForceFailure).
+
+**What went wrong? (Q6) over the history.** When Algorithm 7 has something to say at
+the moment, that is the answer (word for word the paper's). Otherwise, after the root
+completed with FAILURE: ``I could not {d(root)} because {d(leaf)} failed.`` Otherwise,
+when Algorithm 7 had something to say earlier: ``At {t} s: {that answer}``, for the last
+moment it had one. Only when there is none: ``Nothing went wrong.``
+
+The last such moment is found without a replay. Algorithm 7 speaks only while a
+failure handler (``btlog.explain.handlers``) above the current node, within its
+subgoal, holds a failure of one of its children: a *window* that opens with the child's
+FAILURE and closes when the handler starts again (a fallback) or completes (a retry).
+For each handler, its last window before the moment is read from the history, and in it
+the last moment the current node was inside the handler's branch; Algorithm 7 is then
+run on the state at that moment, which both checks the candidate and gives the words.
+Each handler's last window is looked at (not earlier ones of the same handler).
+"""
+
+from __future__ import annotations
+
+from btlog.explain.failure import NOTHING_WRONG, what_went_wrong
+from btlog.explain.handlers import handler_of
+from btlog.explain.hierarchy import current_nodes, per_node
+from btlog.history import ANY_STATUS, COMPLETIONS, History, Transition
+from btlog.state import State
+from btlog.status import FAILURE, IDLE, RUNNING, SUCCESS
+from btlog.tree.model import SUBTREE, Node, Tree
+
+#: Statuses that make a node the current one (resets to IDLE do not).
+ACTIVE = (RUNNING, SUCCESS, FAILURE)
+
+
+def seconds(t_ns: int) -> str:
+    """A time or duration as the commands print it: seconds, millisecond precision."""
+    return f"{t_ns / 1e9:.3f}"
+
+
+def algorithm7(tree: Tree, state: State) -> str:
+    """Algorithm 7 at the moment ``state``, for every current node."""
+    return per_node(current_nodes(tree, state), lambda n: what_went_wrong(n, state), NOTHING_WRONG)
+
+
+def activation_start(node: Node, before: int, history: History, lo: int = 0) -> int:
+    """The seq of the node's last start (out of IDLE) before event ``before`` (``lo``
+    when there is none since ``lo``)."""
+    start = history.last([node.uid], ANY_STATUS, lo, before, starts=True)
+    return lo if start is None else start.seq
+
+
+def cause(tree: Tree, node: Node, completion: Transition, history: History) -> Transition:
+    """The completion of the execution node that caused ``completion`` of ``node`` (the
+    causal chain, see the module docstring); ``completion`` itself for a leaf, or when no
+    child completed in the activation (e.g. a Timeout halted it)."""
+    lo = 0
+    while node.children:
+        lo = activation_start(node, completion.seq + 1, history, lo)
+        uids = [c.uid for c in node.children]
+        child = history.last(uids, COMPLETIONS, lo, completion.seq)
+        if child is None or child.uid not in tree.nodes:
+            break
+        node, completion = tree.node(child.uid), child
+    return completion
+
+
+def because(tree: Tree, node: Node, completion: Transition, history: History) -> str:
+    """``{d(leaf)} failed`` (or ``succeeded``) for the cause of ``completion``."""
+    leaf = cause(tree, node, completion, history)
+    verb = "succeeded" if leaf.status is SUCCESS else "failed"
+    return f"{tree.node(leaf.uid).description} {verb}"
+
+
+def last_completion(node: Node, state: State, history: History) -> Transition | None:
+    """The node's last completion at or before the moment, if it has not started since."""
+    done = history.last([node.uid], COMPLETIONS, 0, state.seq)
+    if done is None or history.last([node.uid], ANY_STATUS, done.seq + 1, state.seq, True):
+        return None
+    return done
+
+
+def root_failure(tree: Tree, state: State, history: History) -> str | None:
+    """``I could not {d(root)} because …`` when the root's last result was FAILURE."""
+    done = last_completion(tree.root, state, history)
+    if done is None or done.status is not FAILURE:
+        return None
+    return f"I could not {tree.root.description} because {because(tree, tree.root, done, history)}."
+
+
+def _scope(handler: Node) -> list[int]:
+    """The execution nodes from which Algorithm 7's walk reaches ``handler`` (its
+    descendants, not crossing a SubTree)."""
+    found: list[int] = []
+    stack = list(handler.children)
+    while stack:
+        node = stack.pop()
+        if node.is_execution:
+            found.append(node.uid)
+        elif node.kind != SUBTREE:
+            stack.extend(node.children)
+    return found
+
+
+def _window_end(handler: Node, failed: Transition, now: int, history: History) -> int:
+    """The moment (a count of events) just before the handler's window closes, or now."""
+    rule = handler_of(handler)
+    assert rule is not None
+    if rule.lasts_until_restart:
+        close = history.first([handler.uid], ANY_STATUS, failed.seq + 1, now, starts=True)
+    else:
+        close = history.first([handler.uid], (SUCCESS, FAILURE, IDLE), failed.seq + 1, now)
+    return now if close is None else close.seq
+
+
+def _candidate(
+    handler: Node, failed: Transition, end: int, leaves: list[int], history: History
+) -> int | None:
+    """The last moment in the window (after ``failed``, up to ``end``) at which the
+    current node was inside the handler's branch."""
+    scope = _scope(handler)
+    last_leaf = history.last(leaves, ACTIVE, 0, end)
+    if last_leaf is None:
+        return None
+    if last_leaf.uid in scope:
+        return end
+    inside = history.last(scope, ACTIVE, 0, end)
+    if inside is None:
+        return None
+    leaving = history.first(leaves, ACTIVE, inside.seq + 1, end)
+    moment = end if leaving is None else leaving.seq
+    return moment if moment > failed.seq else None
+
+
+def earlier_wrong(tree: Tree, state: State, history: History) -> tuple[int, str] | None:
+    """(time, Algorithm 7's answer) at the last moment before ``state`` it had one."""
+    now = state.seq
+    handlers = [n for n in tree if handler_of(n) is not None]
+    windows = []
+    for handler in handlers:
+        failed = history.last([c.uid for c in handler.children], (FAILURE,), 0, now)
+        if failed is not None:
+            windows.append((failed.seq, handler, failed))
+    leaves = [n.uid for n in tree if n.is_execution]
+    best: tuple[int, int, str] | None = None
+    for _, handler, failed in sorted(windows, key=lambda w: w[0], reverse=True):
+        end = _window_end(handler, failed, now, history)
+        if best is not None and end <= best[0]:
+            continue
+        moment = _candidate(handler, failed, end, leaves, history)
+        if moment is None or (best is not None and moment <= best[0]):
+            continue
+        then_tree, then = history.state_after(moment)
+        text = algorithm7(then_tree, then)
+        if text != NOTHING_WRONG:
+            best = (moment, then.t_ns, text)
+    return None if best is None else (best[1], best[2])
+
+
+def what_went_wrong_over_history(tree: Tree, state: State, history: History | None) -> str:
+    """Q6: Algorithm 7 now; else the root's failure; else Algorithm 7's last answer."""
+    now = algorithm7(tree, state)
+    if now != NOTHING_WRONG or history is None:
+        return now
+    failed = root_failure(tree, state, history)
+    if failed is not None:
+        return failed
+    earlier = earlier_wrong(tree, state, history)
+    if earlier is not None:
+        return f"At {seconds(earlier[0])} s: {earlier[1]}"
+    return NOTHING_WRONG

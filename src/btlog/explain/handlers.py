@@ -1,0 +1,111 @@
+"""Failure handlers: the node types that react to a child's failure, and how.
+
+This is the extension point for new control and decorator types that handle failures
+(Nav2's RecoveryNode, for one): register a ``FailureHandler`` under the node's type and
+the run's story says how each failure was handled, and Q6 over the history looks for
+"what went wrong" in its branch. A handler answers one question: *this child of mine
+has just failed for the k-th time in my current activation — what do I do?* It
+retries (attempt k + 1 of n), falls back to another child, or lets the failure
+propagate to its parent.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+from typing import Protocol
+
+from btlog.tree.model import Node
+
+RETRIED = "retried"
+FELL_BACK = "fell back"
+PROPAGATED = "propagated"
+
+
+@dataclass(frozen=True)
+class Reaction:
+    """What a handler did about a child's failure: ``kind`` is ``RETRIED`` (``attempt``
+    of ``attempts``, None when unlimited), ``FELL_BACK`` (to ``target``) or
+    ``PROPAGATED`` (the handler failed too)."""
+
+    kind: str
+    target: Node | None = None
+    attempt: int | None = None
+    attempts: int | None = None
+
+    def text(self) -> str:
+        """E.g. ``retried (attempt 2 of 3)``, ``fell back to ask``, ``propagated``."""
+        if self.kind == RETRIED:
+            of = "" if self.attempts is None else f" of {self.attempts}"
+            return f"retried (attempt {self.attempt}{of})"
+        if self.kind == FELL_BACK and self.target is not None:
+            return f"fell back to {self.target.description}"
+        return self.kind
+
+
+class FailureHandler(Protocol):
+    """How one node type reacts to a child's failure."""
+
+    #: True when the "something went wrong" of a failure lasts until the handler starts
+    #: again (a fallback); False when it ends with the handler's own result (a retry).
+    lasts_until_restart: bool
+
+    def react(self, node: Node, child: Node, failures: int) -> Reaction:
+        """``child`` of ``node`` failed, the ``failures``-th time in ``node``'s current
+        activation: the reaction."""
+        ...
+
+
+class FallbackHandler:
+    """Fallback, ReactiveFallback: the next child is tried; after the last, it fails."""
+
+    lasts_until_restart = True
+
+    def react(self, node: Node, child: Node, failures: int) -> Reaction:
+        """Fall back to the next child, or propagate after the last one."""
+        index = node.children.index(child)
+        if index + 1 < len(node.children):
+            return Reaction(FELL_BACK, node.children[index + 1])
+        return Reaction(PROPAGATED)
+
+
+class RetryHandler:
+    """RetryUntilSuccessful: the child is ticked again, ``num_attempts`` times in all."""
+
+    lasts_until_restart = False
+
+    def __init__(self, port: str = "num_attempts") -> None:
+        self.port = port
+
+    def react(self, node: Node, child: Node, failures: int) -> Reaction:
+        """Retry while attempts are left (-1: forever), else propagate."""
+        attempts = attempts_of(node, self.port)
+        if attempts is None or failures < attempts:
+            return Reaction(RETRIED, child, failures + 1, attempts)
+        return Reaction(PROPAGATED)
+
+
+def attempts_of(node: Node, port: str) -> int | None:
+    """The node's attempt limit from ``port`` (None: unlimited or not a plain number)."""
+    port_value = node.ports.get(port)
+    try:
+        value = int(port_value.value) if port_value is not None else None
+    except ValueError:
+        return None
+    return None if value is None or value < 0 else value
+
+
+HANDLERS: dict[str, FailureHandler] = {
+    "Fallback": FallbackHandler(),
+    "ReactiveFallback": FallbackHandler(),
+    "RetryUntilSuccessful": RetryHandler(),
+}
+
+
+def register_handler(type_name: str, handler: FailureHandler) -> None:
+    """Treat nodes of ``type_name`` as failure handlers (see the module docstring)."""
+    HANDLERS[type_name] = handler
+
+
+def handler_of(node: Node) -> FailureHandler | None:
+    """The node's failure handler, if its type has one."""
+    return HANDLERS.get(node.type) if node.children else None

@@ -1,0 +1,126 @@
+"""Questions about one node's past: why did X fail, why didn't you X, when did X last
+fail/succeed/start, how long did X take.
+
+``{X}`` is matched as ``--node`` matches (``find_node``): a path, a name, or a type,
+case-insensitively; when several nodes match — a SubTree, its root and a Sequence often
+share a name — the outermost is meant. Every answer reads the history up to the moment
+only, so it is the same live and post hoc.
+"""
+
+from __future__ import annotations
+
+from btlog.explain.causes import because, seconds
+from btlog.explain.handlers import FallbackHandler, handler_of
+from btlog.history import ANY_STATUS, COMPLETIONS, History
+from btlog.state import State
+from btlog.status import FAILURE, RUNNING, SUCCESS, Status
+from btlog.tree.model import Node, Tree
+
+#: "When did X last …?": the statuses asked about and the words of the answer.
+EVENTS: dict[str, tuple[tuple[Status, ...], bool, str, str]] = {
+    "fail": ((FAILURE,), False, "failed", "has not failed"),
+    "succeed": ((SUCCESS,), False, "succeeded", "has not succeeded"),
+    "start": (tuple(Status), True, "started", "has not started"),
+}
+
+
+def _fold(text: str) -> str:
+    return " ".join(text.casefold().split())
+
+
+def find_node(tree: Tree, text: str) -> Node | None:
+    """The node ``text`` names: by path, else name, else type (nameless nodes first);
+    the outermost (then first in tree order) of several."""
+    wanted = _fold(text.strip().strip("\"'“”‘’"))
+    best: tuple[int, int, int, Node] | None = None
+    for order, node in enumerate(tree):
+        name = _fold(node.name)
+        if wanted.startswith("the ") and name != wanted and name == wanted[4:]:
+            name = wanted
+        if node.path == text or _fold(node.path) == wanted:
+            rank = 0
+        elif name == wanted:
+            rank = 1
+        elif _fold(node.type) == wanted:
+            rank = 2 if not node.name else 3
+        else:
+            continue
+        key = (rank, node.depth, order, node)
+        if best is None or key[:3] < best[:3]:
+            best = key
+    return None if best is None else best[3]
+
+
+def why_failed(tree: Tree, node: Node, state: State, history: History) -> str:
+    """``I could not {d(X)} because {d(leaf)} failed.`` for X's last FAILURE."""
+    failed = history.last([node.uid], (FAILURE,), 0, state.seq)
+    if failed is None:
+        return f"{node.description} has not failed."
+    return f"I could not {node.description} because {because(tree, node, failed, history)}."
+
+
+def why_not(tree: Tree, node: Node, state: State, history: History) -> str:
+    """Why X did not start in its parent's activation (see the README's table)."""
+    now, asked = state.seq, node
+    while node.parent is not None:
+        parent = node.parent
+        start = history.last([parent.uid], ANY_STATUS, 0, now, starts=True)
+        if start is None:
+            node = parent
+            continue
+        if history.first([node.uid], ANY_STATUS, start.seq, now, starts=True) is not None:
+            return f"I did {asked.description}." if node is asked else _not_yet(asked)
+        return _reason(tree, asked, node, start.seq, state, history)
+    ran = history.last([node.uid], ANY_STATUS, 0, now, starts=True)
+    return f"I did {asked.description}." if ran is not None and node is asked else _not_yet(asked)
+
+
+def _not_yet(node: Node) -> str:
+    return f"I have not {node.description} yet."
+
+
+def _reason(tree: Tree, asked: Node, node: Node, since: int, state: State, history: History) -> str:
+    """Why ``node`` (``asked`` or its ancestor) did not start in its parent's activation
+    that began at ``since``: an earlier sibling's result."""
+    parent = node.parent
+    assert parent is not None
+    earlier = [c.uid for c in parent.children[: parent.children.index(node)]]
+    fallback = isinstance(handler_of(parent), FallbackHandler)
+    if parent.type in ("IfThenElse", "WhileDoElse") and parent.children.index(node) == 2:
+        fallback = True
+    done = history.last(earlier, (SUCCESS,) if fallback else (FAILURE,), since, state.seq)
+    if done is None:
+        return _not_yet(asked)
+    if fallback:
+        return f"I did not {asked.description} because {tree.node(done.uid).description} succeeded."
+    sibling = tree.node(done.uid)
+    return f"I did not {asked.description} because {because(tree, sibling, done, history)}."
+
+
+def when_last(node: Node, event: str, state: State, history: History) -> str:
+    """``{d(X)} last failed at {t} s.`` (succeeded, started), or ``… has not failed.``"""
+    statuses, starts, did, never = EVENTS[event]
+    found = history.last([node.uid], statuses, 0, state.seq, starts=starts)
+    if found is None:
+        return f"{node.description} {never}."
+    return f"{node.description} last {did} at {seconds(found.t_ns)} s."
+
+
+def how_long(node: Node, state: State, history: History, now_ns: int) -> str:
+    """``{d(X)} took {d} s, from {t0} s to {t1} s.`` for its last completed activation;
+    ``{d(X)} has been running for {d} s.`` while it runs (until ``now_ns``)."""
+    now = state.seq
+    start = history.last([node.uid], ANY_STATUS, 0, now, starts=True)
+    if start is None:
+        return f"{node.description} has not started."
+    if state.status_of(node.uid) is RUNNING:
+        return f"{node.description} has been running for {seconds(now_ns - start.t_ns)} s."
+    done = history.last([node.uid], COMPLETIONS, 0, now)
+    if done is None:
+        return f"{node.description} has not completed."
+    began = history.last([node.uid], ANY_STATUS, 0, done.seq + 1, starts=True)
+    t0 = done.t_ns if began is None else began.t_ns
+    return (
+        f"{node.description} took {seconds(done.t_ns - t0)} s, "
+        f"from {seconds(t0)} s to {seconds(done.t_ns)} s."
+    )

@@ -1,0 +1,89 @@
+"""The history of a recorded run, from its read model (see ``btlog.history``).
+
+Every query is one SQL statement on the run's ``transitions`` table (its rows are in seq
+order, so DuckDB's zone maps skip the blocks outside ``lo..hi``), and ``state_after`` is
+the read model's snapshot plus a short tail. Nothing is replayed from the start of the
+run, whatever the question. A short run (at most ``IN_MEMORY_EVENTS`` events) has its
+transitions read once, on the first question, into the same in-memory index the live
+history uses: a statement costs about a millisecond, a binary search microseconds.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Collection
+from typing import TYPE_CHECKING
+
+from btlog.history import History, Statuses, Transition, TransitionIndex, Uids
+from btlog.state import State
+from btlog.status import Status
+from btlog.tree.model import Tree
+
+if TYPE_CHECKING:
+    from btlog.replay.database import Run
+
+
+#: Runs with at most this many events are queried in memory (see the module docstring).
+IN_MEMORY_EVENTS = 200_000
+
+
+_COLUMNS = "seq, t_ns, uid, enum_code(prev_status), enum_code(status)"
+
+
+def _in_list(values: Collection[int]) -> str:
+    """A SQL list of integers (only ints are ever written into the statement)."""
+    return "(" + ", ".join(str(int(v)) for v in sorted(set(values))) + ")"
+
+
+class SqlHistory(History):
+    """``History`` over one run of a ``RunDatabase``."""
+
+    def __init__(self, run: Run, in_memory: bool | None = None) -> None:
+        self.run = run
+        self._table = f"{run.catalog}.transitions"
+        if in_memory is None:
+            in_memory = run.extent.events <= IN_MEMORY_EVENTS
+        self._index: TransitionIndex | None = None
+        if in_memory:
+            self._index = TransitionIndex()
+            for row in self._rows("", "ORDER BY seq", {}):
+                self._index.add(_transition(row))
+
+    def _rows(self, where: str, tail: str, params: dict, columns: str = _COLUMNS) -> list[tuple]:
+        return self.run.con.execute(
+            f"SELECT {columns} FROM {self._table} WHERE run_id = $run_id {where} {tail}",
+            {"run_id": self.run.stored_id, **params},
+        ).fetchall()
+
+    def select(
+        self, kind: str, uids: Uids, statuses: Statuses, lo: int, hi: int, starts: bool, limit: int
+    ) -> list[Transition] | int:
+        """See ``Queries.select``: the in-memory index of a short run, else one SQL
+        statement."""
+        if self._index is not None:
+            return self._index.select(kind, uids, statuses, lo, hi, starts, limit)
+        if not uids or not statuses or lo >= hi:
+            return 0 if kind == "count" else []
+        where = (
+            f"AND seq >= $lo AND seq < $hi AND uid IN {_in_list(uids)} "
+            f"AND enum_code(status) IN {_in_list([int(s) for s in statuses])}"
+        )
+        if starts:
+            where += " AND prev_status = 'IDLE'"
+        params = {"lo": lo, "hi": hi}
+        if kind == "count":
+            return int(self._rows(where, "", params, "count(*)")[0][0])
+        tail = {
+            "last": "ORDER BY seq DESC LIMIT 1",
+            "first": "ORDER BY seq LIMIT 1",
+            "all": f"ORDER BY seq LIMIT {int(limit)}",
+        }[kind]
+        return [_transition(row) for row in self._rows(where, tail, params)]
+
+    def state_after(self, count: int) -> tuple[Tree, State]:
+        """See ``History.state_after``: the read model's snapshot and tail."""
+        return self.run.state_after(count)
+
+
+def _transition(row: tuple) -> Transition:
+    seq, t_ns, uid, prev, status = row
+    return Transition(seq, t_ns, uid, Status(prev), Status(status))

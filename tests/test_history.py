@@ -1,0 +1,147 @@
+"""Explanations over a run's history (issue 15): Q6 after the fact, the new questions,
+word for word on the project's trees, asked live (``--ask``) and post hoc."""
+
+from __future__ import annotations
+
+import subprocess
+import sys
+from pathlib import Path
+
+import pytest
+
+from btlog.explain.questions import answer
+from btlog.replay.database import open_runs
+from btlog.runner import RunConfig, execute
+
+ROOT = Path(__file__).resolve().parent.parent
+TAXI = str(ROOT / "trees" / "taxi.xml")
+KITTING = str(ROOT / "trees" / "kitting.xml")
+
+TAXI_PICKUP_FAILS = {
+    "What went wrong?": "I could not go deliver passenger because pick up passenger failed.",
+    "Why didn't you drop off passenger?": (
+        "I did not drop off passenger because pick up passenger failed."
+    ),
+    "Why did go pick up passenger fail?": (
+        "I could not go pick up passenger because pick up passenger failed."
+    ),
+    "When did pick up passenger last fail?": "pick up passenger last failed at 7.000 s.",
+    "When did drop off passenger last start?": "drop off passenger has not started.",
+    "How long did go pick up passenger take?": (
+        "go pick up passenger took 7.000 s, from 0.000 s to 7.000 s."
+    ),
+    "What will you do next?": "I have finished go deliver passenger.",
+}
+
+
+def _record(tmp_path: Path, tree: str, domain: str, questions=(), **config) -> Path:
+    path = tmp_path / "run.mcap"
+    execute(RunConfig(tree=tree, domain=domain, questions=list(questions), **config), path)
+    return path
+
+
+def _ask(path: Path, at: str, question: str) -> str:
+    with open_runs(path, cache=False) as database:
+        run = database.run(str(path))
+        moment = run.resolve(at)
+        tree, state = run.state_after(moment.count)
+        return answer(tree, state, question, run.history(), moment.t_ns).text
+
+
+def test_taxi_pick_up_fails_live_and_post_hoc(tmp_path: Path) -> None:
+    questions = [f"100s={q}" for q in TAXI_PICKUP_FAILS]  # past the end: asked at the end
+    path = tmp_path / "run.mcap"
+    result = execute(
+        RunConfig(tree=TAXI, domain="taxi", fail=["pick up passenger"], questions=questions), path
+    )
+    assert result.final_status.name == "FAILURE"
+    live = {q.question: a.text for q, a, _ in result.answers}
+    assert live == TAXI_PICKUP_FAILS
+    for question, expected in TAXI_PICKUP_FAILS.items():
+        assert _ask(path, "end", question) == expected
+
+
+def test_kitting_insertion_fails_through_every_retry(tmp_path: Path) -> None:
+    """The robot falls back to asking for help and the run succeeds: at the end Q6 tells
+    the last failure Algorithm 7 explained, with its time."""
+    path = _record(
+        tmp_path, KITTING, "kitting", outcomes={"nodes": {"trial and error insert": ["FAILURE"]}}
+    )
+    assert _ask(path, "end", "What went wrong?") == (
+        "At 43.700 s: I could not go insert large gear because I was unable to insert "
+        "large gear as trial and error insert failed."
+    )
+    assert _ask(path, "end", "Why did trial and error insert fail?") == (
+        "I could not trial and error insert because trial and error insert failed."
+    )
+    assert _ask(path, "end", "Why did go insert large gear fail?") == (
+        "go insert large gear has not failed."
+    )
+
+
+def test_nothing_went_wrong_only_when_nothing_failed(tmp_path: Path) -> None:
+    path = _record(tmp_path, TAXI, "taxi")
+    assert _ask(path, "end", "What went wrong?") == "Nothing went wrong."
+    assert _ask(path, "end", "Why did pick up passenger fail?") == (
+        "pick up passenger has not failed."
+    )
+    assert _ask(path, "end", "Why didn't you drop off passenger?") == "I did drop off passenger."
+
+
+def test_what_will_you_do_next_kitting(tmp_path: Path) -> None:
+    path = _record(tmp_path, KITTING, "kitting", max_ticks=60)
+    with open_runs(path, cache=False) as database:
+        run = database.run(str(path))
+        (first,) = [e for e in run.timeline(node="move to see chuck", status="RUNNING")][:1]
+        tree, state = run.state_at(f"seq:{first.seq}")
+        text = answer(tree, state, "What will you do next?", run.history()).text
+    assert text == "After I move to see chuck, I will lift torso."
+
+
+@pytest.mark.parametrize(
+    ("question", "expected"),
+    [
+        ("what's next", "After I move right, I will move right."),
+        ("Why haven't you dropped off passenger?", 'Sorry. I don\'t know "dropped off passenger".'),
+        ("Why did you not drop off passenger?", "I have not drop off passenger yet."),
+        ("When did navigate to passenger start?", "navigate to passenger last started at 0.000 s."),
+        ("How long has move right been running?", "move right has been running for 0.250 s."),
+    ],
+)
+def test_paraphrases(tmp_path_factory, question: str, expected: str) -> None:
+    folder = tmp_path_factory.mktemp("taxi")
+    path = _record(folder, TAXI, "taxi", max_ticks=6)
+    assert _ask(path, "0.25s", question) == expected
+
+
+def test_shared_name_means_the_outermost_node(tmp_path: Path) -> None:
+    """``go insert large gear`` names a SubTree, its Fallback and a Sequence: the
+    answer is about the SubTree, never a refusal."""
+    path = _record(tmp_path, KITTING, "kitting", max_ticks=5)
+    with open_runs(path, cache=False) as database:
+        run = database.run(str(path))
+        tree, state = run.state_at("end")
+        result = answer(tree, state, "When did go insert large gear last start?", run.history())
+    (uid,) = result.nodes
+    assert tree.node(uid).kind == "subtree"
+    assert result.text == "go insert large gear last started at 0.000 s."
+
+
+def test_cli_ask_at_end(tmp_path: Path) -> None:
+    path = _record(tmp_path, TAXI, "taxi", fail=["pick up passenger"])
+    done = subprocess.run(
+        [
+            sys.executable,
+            "-m",
+            "btlog.cli.main",
+            "ask",
+            str(path),
+            "--at",
+            "end",
+            "What went wrong?",
+        ],
+        capture_output=True,
+        text=True,
+        check=True,
+    )
+    assert done.stdout.strip() == TAXI_PICKUP_FAILS["What went wrong?"]
