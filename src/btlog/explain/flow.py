@@ -143,6 +143,16 @@ def _until_failure(parent: Node, child: Node, status: Status, now: Now) -> Step:
 
 _SEQUENCE = _in_order(SUCCESS)
 
+
+def _recovery(parent: Node, child: Node, status: Status, now: Now) -> Step:
+    """Nav2's RecoveryNode: the first child's failure runs the recovery, whose success
+    runs the first child again."""
+    first = parent.children[0]
+    if child is first:
+        return status if status is SUCCESS else entry(parent.children[-1], now.state)
+    return entry(first, now.state) if status is SUCCESS else FAILURE
+
+
 FLOW: dict[str, Rule] = {
     "Sequence": _SEQUENCE,
     "SequenceWithMemory": _in_order(SUCCESS),
@@ -159,6 +169,7 @@ FLOW: dict[str, Rule] = {
     "Inverter": _inverter,
     "ForceSuccess": _constant(SUCCESS),
     "ForceFailure": _constant(FAILURE),
+    "RecoveryNode": _recovery,
 }
 
 

@@ -84,20 +84,38 @@ class RetryHandler:
         return Reaction(PROPAGATED)
 
 
-def attempts_of(node: Node, port: str) -> int | None:
-    """The node's attempt limit from ``port`` (None: unlimited or not a plain number)."""
+class RecoveryHandler:
+    """Nav2's RecoveryNode: a failure of the first child runs the recovery (the second
+    child), whose success retries the first, ``number_of_retries`` times at most."""
+
+    lasts_until_restart = True
+
+    def react(self, node: Node, child: Node, failures: int) -> Reaction:
+        """Fall back to the recovery while retries are left, else propagate."""
+        retries = attempts_of(node, "number_of_retries", default=1)
+        if child is node.children[0] and (retries is None or failures <= retries):
+            return Reaction(FELL_BACK, node.children[-1])
+        return Reaction(PROPAGATED)
+
+
+def attempts_of(node: Node, port: str, default: int | None = None) -> int | None:
+    """The node's attempt limit from ``port`` (None: unlimited or not a plain number;
+    ``default`` when the port is not given)."""
     port_value = node.ports.get(port)
+    if port_value is None:
+        return default
     try:
-        value = int(port_value.value) if port_value is not None else None
+        value = int(port_value.value)
     except ValueError:
         return None
-    return None if value is None or value < 0 else value
+    return None if value < 0 else value
 
 
 HANDLERS: dict[str, FailureHandler] = {
     "Fallback": FallbackHandler(),
     "ReactiveFallback": FallbackHandler(),
     "RetryUntilSuccessful": RetryHandler(),
+    "RecoveryNode": RecoveryHandler(),
 }
 
 
