@@ -11,6 +11,8 @@ from __future__ import annotations
 import json
 from pathlib import Path
 
+from hypothesis import HealthCheck, assume, given, settings
+from hypothesis import strategies as st
 from mcap.reader import make_reader
 from mcap_ros2.decoder import DecoderFactory
 from mcap_ros2.writer import Writer
@@ -18,8 +20,10 @@ from mcap_ros2.writer import Writer
 from btlog.record.reader import Recording, open_recording
 from btlog.record.recorder import start_time_ns
 from btlog.runner import RunConfig, execute
-from btlog.sinks.nav2_rosbag import LOG_MSGDEF
+from btlog.sinks.nav2_rosbag import LOG_MSGDEF, export_nav2
+from btlog.sources.nav2_rosbag import import_bag
 from btlog.status import RUNNING
+from tests.oracle.random_trees import generate
 from tests.test_cli import ROOT, assert_bad_input, btlog
 
 NAV2 = ROOT / "trees" / "nav2"
@@ -206,3 +210,27 @@ def test_bad_bags_exit_2_with_one_line(tmp_path: Path) -> None:
     assert_bad_input(
         btlog("import", str(humble), "--tree", str(TREE)), "no uids", "cannot tell them apart"
     )
+
+
+@settings(max_examples=15, deadline=None, suppress_health_check=[HealthCheck.too_slow])
+@given(st.integers(0, 10_000))
+def test_random_trees_round_trip_through_a_nav2_bag(tmp_path_factory, seed: int) -> None:
+    """Any run exported as a Nav2 bag imports back (tree from the bag's XML) to the same
+    transitions at the same absolute times."""
+    case = generate(seed)
+    folder = tmp_path_factory.mktemp("roundtrip")
+    tree = folder / "tree.xml"
+    tree.write_text(case.xml)
+    config = RunConfig(str(tree), outcomes=case.outcomes, max_ticks=case.max_ticks)
+    run = open_recording(execute(config, folder / "run.mcap").path)
+    assume(run.transitions)
+    export_nav2(run, folder / "bag.mcap")
+    (result,) = import_bag(folder / "bag.mcap", folder / "back.mcap")
+    back = open_recording(result.path)
+
+    def absolute(recording: Recording) -> list[tuple]:
+        start = start_time_ns(recording.metadata["started_at"])
+        return [(start + t, uid, prev, new) for t, uid, prev, new in transitions(recording)]
+
+    assert absolute(back) == absolute(run)
+    assert [n.describe()["type"] for n in back.tree] == [n.describe()["type"] for n in run.tree]
