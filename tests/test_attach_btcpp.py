@@ -142,3 +142,39 @@ def test_attach_cli_answers_live_and_records_blackboard_changes(tmp_path: Path) 
     assert [a["question"] for a in recording.answers] == ["What are you doing?"]
     writes = {(e.scope, e.key): e.value for e in recording.events if hasattr(e, "key")}
     assert writes.get(("", "x")) is not None and writes.get(("", "v")) is not None
+
+
+BURST_XML = """<root BTCPP_format="4" main_tree_to_execute="Main">
+  <BehaviorTree ID="Main">
+    <Repeat name="burst" num_cycles="400">
+      <Sequence name="step"><AlwaysSuccess name="a"/><AlwaysSuccess name="b"/></Sequence>
+    </Repeat>
+  </BehaviorTree>
+</root>"""
+
+
+def test_attach_reports_transitions_lost_beyond_btcpps_buffer(tmp_path: Path) -> None:
+    port = _free_port_pair()
+    sync = tmp_path / "sync"
+    sync.mkdir()
+    payload = {"xml": BURST_XML, "outcomes": {}, "max_ticks": 1}
+    payload |= {"groot2_port": port, "sync_dir": str(sync)}
+    stop, polled = threading.Event(), _Polled()
+    options = AttachOptions(poll_interval=0.05)
+    with ThreadPoolExecutor(max_workers=2) as pool:
+        oracle = pool.submit(run_oracle, payload, 60)
+        _wait_for(sync / "ready")
+        attached = pool.submit(
+            attach, f"tcp://127.0.0.1:{port}", tmp_path / "b.mcap", options, hooks=polled, stop=stop
+        )
+        assert polled.event.wait(10)
+        (sync / "go").touch()  # one tick: 400 cycles, 2,800 transitions at once
+        _wait_for(sync / "ran")
+        stop.set()
+        result = attached.result(timeout=20)
+        (sync / "quit").touch()
+        theirs = oracle.result(timeout=30)
+    assert theirs is not None and len(theirs["transitions"]) > 2500
+    assert result.full_polls >= 1
+    assert any("may be lost" in w for w in result.build.warnings)
+    assert result.build.transitions <= 1000 * result.full_polls + 1000
