@@ -14,6 +14,7 @@ from pathlib import Path
 
 import orjson
 import pytest
+from btlog.record.schemas import schema_text
 from mcap.well_known import MessageEncoding, SchemaEncoding
 from mcap.writer import CompressionType, Writer
 
@@ -21,7 +22,6 @@ from btlog.domains.outcomes import Outcomes, scripted_leaf_factory
 from btlog.executor.engine import Executor
 from btlog.record import Recorder, iter_messages, read_metadata
 from btlog.record import format as fmt
-from btlog.record.schemas import schema_text
 from btlog.replay import cache
 from btlog.replay.database import cache_location, open_runs
 from btlog.tree.loader import load_tree_text

@@ -216,15 +216,18 @@ def test_check_expect_command_exit_codes(kitting_run, tmp_path):
     [
         (
             "answers:\n  - at: tick:1\n    ask: What are you doing?\n",
-            "answers[0]: 'answer' missing",
+            ":2: answers[0]: 'answer' missing",
         ),
         (
             "answers: [{at: 'tick:1', ask: Dance for me, answer: x}]",
             "answers[0]: unknown question 'Dance for me'",
         ),
-        ("statuses: [{at: tick:1, node: x, status: GREAT}]", "statuses[0]: status 'GREAT'"),
+        (
+            "statuses: [{at: tick:1, node: x, status: GREAT}]",
+            ":1: statuses[0]['status']: must be one of IDLE",
+        ),
         ("final_status: [1, 2", "not valid YAML"),
-        ("colour: blue", "unknown key 'colour'"),
+        ("colour: blue", ":1: colour: unknown key 'colour'"),
         ("statuses: [{at: tick:99999, node: detect chuck, status: IDLE}]", "statuses[0]:"),
         ("statuses: [{at: tick:1, node: retreat arm, status: IDLE}]", "matches 6 nodes"),
     ],
@@ -247,7 +250,7 @@ def test_check_needs_expect_or_rerun(kitting_run):
 def test_load_expectations_names_the_file_and_entry(tmp_path):
     path = tmp_path / "e.yaml"
     path.write_text("answers:\n  - at: 1s\n    ask: What is your goal?\n", encoding="utf-8")
-    with pytest.raises(ExpectationError, match=r"e\.yaml: answers\[0\]: 'answer' missing"):
+    with pytest.raises(ExpectationError, match=r"e\.yaml:2: answers\[0\]: 'answer' missing"):
         load_expectations(path)
     assert load_expectations(path, partial=True).answers[0].answer is None
 
@@ -333,4 +336,4 @@ def test_plugin_reports_a_bad_expectation_file_in_one_line(kitting_run, tmp_path
     (tmp_path / "kit.expect.yaml").write_text("statuses: [{at: 1s}]\n", encoding="utf-8")
     result = _pytest(tmp_path)
     assert result.returncode == 2, result.stdout
-    assert "kit.expect.yaml: statuses[0]: 'node' missing" in result.stdout
+    assert "kit.expect.yaml:1: statuses[0]: 'node' missing" in result.stdout

@@ -164,11 +164,14 @@ def test_bad_trees(tmp_path: Path, xml: str, words: list[str]) -> None:
 @pytest.mark.parametrize(
     ("content", "words"),
     [
-        ("nodes: [1, 2]", ["nodes must be a mapping"]),
-        ("nodes:\n  'look at chuck': MAYBE", ["status must be SUCCESS or FAILURE"]),
+        ("nodes: [1, 2]", [":1: nodes: must be a mapping"]),
+        (
+            "nodes:\n  'look at chuck': MAYBE",
+            [":2: nodes['look at chuck']: status must be SUCCESS or FAILURE"],
+        ),
         ("nodes:\n  'no such node': FAILURE", ["matches no node"]),
-        ("default: {duration: -1}", ["duration must be"]),
-        ("nodes: {a: [", ["not valid YAML/JSON"]),
+        ("default: {duration: -1}", ["default['duration']: must be a number"]),
+        ("nodes: {a: [", ["not valid YAML"]),
     ],
 )
 def test_bad_outcomes(tmp_path: Path, content: str, words: list[str]) -> None:

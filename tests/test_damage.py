@@ -24,8 +24,8 @@ from btlog.executor.engine import Executor
 from btlog.record import Recorder, RecordingError, iter_messages, open_recording, recover
 from btlog.record import format as fmt
 from btlog.record.reader import read_metadata
-from btlog.record.schemas import schema_text
 from btlog.replay.database import ReplayError, open_runs
+from btlog.schema import schema_text
 from btlog.tree.loader import load_tree_text
 
 ROOT = Path(__file__).resolve().parent.parent

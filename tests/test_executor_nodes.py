@@ -402,7 +402,7 @@ def test_sequence_with_memory_keeps_earlier_successes_in_the_log() -> None:
             ("f", "FAILURE", "IDLE"),
         ],
     }
-    assert r.executor.statuses()[r.tree.find("a")[0].uid] is SUCCESS
+    assert r.executor.statuses()[r.tree.lookup("a")[0].uid] is SUCCESS
 
 
 def test_sequence_with_memory_wakes_up_after_a_success_from_idle() -> None:
@@ -1599,7 +1599,7 @@ def test_failure_if_and_success_if_replace_the_tick_when_idle() -> None:
             ("q", "FAILURE", "IDLE"),
         ],
     }
-    assert r.executor.behaviors[r.tree.find("a")[0].uid].activations == 0
+    assert r.executor.behaviors[r.tree.lookup("a")[0].uid].activations == 0
 
 
 def test_failure_if_is_not_checked_while_running() -> None:
@@ -2078,7 +2078,7 @@ def test_script_writes_typed_values() -> None:
         )
     )
     assert r.board == {"a": 4, "b": 7, "s": "xy", "t": "big", "f": 1.5, "ok": True}
-    uid = r.tree.find("s")[0].uid
+    uid = r.tree.lookup("s")[0].uid
     writes = [e for e in r.log.events if isinstance(e, BlackboardWrite)]
     assert [(e.key, e.type, e.writer_uid) for e in writes] == [
         ("a", "int", uid),

@@ -32,10 +32,10 @@ from btlog.executor.engine import Executor
 from btlog.explain.questions import answer
 from btlog.record import format as fmt
 from btlog.record.recorder import Recorder
-from btlog.record.schemas import schema_text
 from btlog.replay.database import ReplayError, open_runs
 from btlog.replay.moments import MomentError, parse_moment
 from btlog.replay.scan import McapScan
+from btlog.schema import schema_text
 from btlog.status import FAILURE, IDLE, RUNNING, SUCCESS
 from btlog.tree.loader import load_tree
 
@@ -728,7 +728,7 @@ def test_timeline_filters_by_node_status_and_moments(kitting, tmp_path):
     with open_runs(path, cache_dir=tmp_path) as database:
         run = database.run()
         tree = run.tree
-        [chuck] = tree.find("look at chuck")
+        [chuck] = tree.lookup("look at chuck")
         entries = run.timeline(node="look at chuck")
         assert [(e.seq, e.status) for e in entries] == [
             (e.seq, e.status.name) for e in live.log.transitions if e.uid == chuck.uid

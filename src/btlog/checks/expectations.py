@@ -39,8 +39,10 @@ from pathlib import Path
 from typing import Any
 
 import yaml
+from jsonschema.exceptions import ValidationError
 
-from btlog import limits
+from btlog import documents
+from btlog.errors import one_line
 from btlog.explain.behaviours import executed_actions
 from btlog.explain.divergence import (
     Divergence,
@@ -73,9 +75,6 @@ __all__ = [
     "rerun",
     "write_expectations",
 ]
-
-_KEYS = ("run", "final_status", "answers", "statuses", "rerun")
-_STATUS_NAMES = tuple(s.name for s in Status)
 
 
 class ExpectationError(ValueError):
@@ -122,103 +121,67 @@ class Expectations:
         return (self.final_status is not None) + len(self.answers) + len(self.statuses)
 
 
-def _fail(source: str, where: str, message: str) -> ExpectationError:
-    return ExpectationError(f"{source}: {where}: {message}" if where else f"{source}: {message}")
+def _text(value: Any) -> str | None:
+    return None if value is None else str(value)
 
 
-def _text(value: Any, source: str, where: str, what: str, required: bool = True) -> str | None:
-    if value is None and not required:
-        return None
-    if isinstance(value, bool) or not isinstance(value, str | int | float):
-        shown = "missing" if value is None else f"must be text, got {type(value).__name__}"
-        raise _fail(source, where, f"{what!r} {shown}")
-    return str(value)
+def _status(value: Any) -> str | None:
+    return None if value is None else str(value).strip().upper()
 
 
-def _status(value: Any, source: str, where: str, key: str, required: bool) -> str | None:
-    text = _text(value, source, where, key, required)
-    if text is None:
-        return None
-    if text.strip().upper() not in _STATUS_NAMES:
-        raise _fail(
-            source, where, f"{key} {text!r} is not a status (one of {', '.join(_STATUS_NAMES)})"
-        )
-    return text.strip().upper()
-
-
-def _entries(data: dict, key: str, source: str) -> list[tuple[str, dict]]:
-    entries = data.get(key) or []
-    if not isinstance(entries, list):
-        raise _fail(source, key, "must be a list of entries")
-    found = []
-    for index, entry in enumerate(entries):
-        where = f"{key}[{index}]"
-        if not isinstance(entry, dict):
-            raise _fail(source, where, "must be a mapping")
-        found.append((where, entry))
-    return found
-
-
-def _check_keys(entry: dict, allowed: tuple[str, ...], source: str, where: str) -> None:
-    unknown = [k for k in entry if k not in allowed]
-    if unknown:
-        raise _fail(
-            source, where, f"unknown key {str(unknown[0])!r} (expected {', '.join(allowed)})"
-        )
-
-
-def _answer(where: str, entry: dict, source: str, partial: bool) -> AnswerExpectation:
-    _check_keys(entry, ("at", "ask", "answer"), source, where)
-    ask = _text(entry.get("ask"), source, where, "ask")
-    try:
-        parse_question(ask)
-    except UnknownQuestion:
-        raise _fail(source, where, f"unknown question {ask!r}") from None
-    return AnswerExpectation(
-        where,
-        _text(entry.get("at"), source, where, "at"),
-        ask,
-        _text(entry.get("answer"), source, where, "answer", not partial),
-    )
-
-
-def _status_entry(where: str, entry: dict, source: str, partial: bool) -> StatusExpectation:
-    _check_keys(entry, ("at", "node", "status"), source, where)
-    return StatusExpectation(
-        where,
-        _text(entry.get("at"), source, where, "at"),
-        _text(entry.get("node"), source, where, "node"),
-        _status(entry.get("status"), source, where, "status", not partial),
+def _filled_later(error: ValidationError) -> bool:
+    """A missing expected value, which re-recording fills in."""
+    return error.validator == "required" and not {"answer", "status"}.isdisjoint(
+        set(error.validator_value) - set(error.instance)
     )
 
 
 def parse_expectations(
-    data: Any, source: str = "expectations", partial: bool = False
+    data: Any,
+    source: str = "expectations",
+    partial: bool = False,
+    lines: dict[documents.KeyPath, int] | None = None,
 ) -> Expectations:
-    """Expectations from a mapping (as in the YAML file).
+    """Expectations from a mapping (as in the YAML file), checked by its schema.
 
     ``partial`` accepts entries whose expected value is missing (``answer``, ``status``):
-    re-recording fills them in. Raises ``ExpectationError`` naming ``source`` and the entry.
+    re-recording fills them in. Raises ``ExpectationError`` naming ``source``, the line
+    (when ``lines`` maps key paths to lines) and the entry.
     """
-    if data is None:
-        data = {}
-    if not isinstance(data, dict):
-        raise _fail(source, "", "the top level must be a mapping")
-    _check_keys(data, _KEYS, source, "")
-    rerun_flag = data.get("rerun", False)
-    if not isinstance(rerun_flag, bool):
-        raise _fail(source, "rerun", "must be true or false")
+    found = documents.errors(data, "expectations")
+    if partial:
+        found = (error for error in found if not _filled_later(error))
+    message = documents.complaint(found, source, lines)
+    if message is not None:
+        raise ExpectationError(message)
+    data = data or {}
+    answers = []
+    for index, entry in enumerate(data.get("answers") or []):
+        where = f"answers[{index}]"
+        try:
+            parse_question(str(entry["ask"]))
+        except UnknownQuestion:
+            line = (lines or {}).get(("answers", index))
+            head = f"{source}:{line}" if line else source
+            raise ExpectationError(f"{head}: {where}: unknown question {entry['ask']!r}") from None
+        answers.append(
+            AnswerExpectation(
+                where, str(entry["at"]), str(entry["ask"]), _text(entry.get("answer"))
+            )
+        )
+    statuses = [
+        StatusExpectation(
+            f"statuses[{index}]", str(entry["at"]), str(entry["node"]), _status(entry.get("status"))
+        )
+        for index, entry in enumerate(data.get("statuses") or [])
+    ]
     return Expectations(
         source=source,
-        final_status=_status(
-            data.get("final_status"), source, "final_status", "final_status", False
-        ),
-        answers=[_answer(w, e, source, partial) for w, e in _entries(data, "answers", source)],
-        statuses=[
-            _status_entry(w, e, source, partial) for w, e in _entries(data, "statuses", source)
-        ],
-        run=_text(data.get("run"), source, "run", "run", False),
-        rerun=rerun_flag,
+        final_status=_status(data.get("final_status")),
+        answers=answers,
+        statuses=statuses,
+        run=_text(data.get("run")),
+        rerun=data.get("rerun", False),
         data=data,
     )
 
@@ -227,19 +190,10 @@ def load_expectations(path: str | os.PathLike, partial: bool = False) -> Expecta
     """Read and check an expectations file (YAML); ``ExpectationError`` in one line."""
     name = os.fspath(path)
     try:
-        text = limits.read_bounded(name).decode("utf-8")
-    except FileNotFoundError:
-        raise ExpectationError(f"{name}: no such expectations file") from None
-    except (OSError, UnicodeDecodeError, limits.LimitError) as error:
-        raise ExpectationError(f"{name}: cannot read: {error}") from None
-    try:
-        data = yaml.safe_load(text)
-    except yaml.YAMLError as error:
-        mark = getattr(error, "problem_mark", None)
-        line = f":{mark.line + 1}" if mark is not None else ""
-        problem = getattr(error, "problem", None) or str(error).splitlines()[0]
-        raise ExpectationError(f"{name}{line}: not valid YAML: {problem}") from None
-    return parse_expectations(data, name, partial)
+        data, lines = documents.read(name, "expectations file")
+    except documents.DocumentError as error:
+        raise ExpectationError(str(error)) from None
+    return parse_expectations(data, name, partial, lines)
 
 
 def write_expectations(path: str | os.PathLike, data: dict) -> None:
@@ -301,15 +255,7 @@ class StoredRun:
     def status(self, at: str, node: str) -> str:
         """The status name of ``node`` (name, type or path) at moment ``at``."""
         tree, state = self.state_at(at)
-        found = tree.lookup(node)
-        if not found:
-            raise LookupError(f"node {node!r} matches no node of the tree")
-        if len(found) > 1:
-            paths = ", ".join(repr(n.path) for n in found[:3])
-            raise LookupError(
-                f"node {node!r} matches {len(found)} nodes; use a path (e.g. {paths})"
-            )
-        return state.status_of(found[0].uid).name
+        return state.status_of(tree.lookup_one(node).uid).name
 
     @property
     def final_status(self) -> str:
@@ -364,7 +310,7 @@ class CheckResult:
 
 
 def _entry_error(source: str, where: str, error: Exception) -> ExpectationError:
-    return _fail(source, where, " ".join(str(error).split()))
+    return ExpectationError(f"{source}: {where}: {one_line(error)}")
 
 
 def check_final_status(run: StoredRun, expected: str) -> CheckResult:

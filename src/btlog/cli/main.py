@@ -15,6 +15,8 @@ from collections.abc import Sequence
 
 from btlog import __version__
 from btlog.cli.limit_flags import add_limit_flags, apply_limit_flags
+from btlog.errors import one_line
+from btlog.render.escape import safe
 
 EXIT_OK, EXIT_CHECK_FAILED, EXIT_BAD_INPUT = 0, 1, 2
 
@@ -218,14 +220,6 @@ def _is_bad_input(error: BaseException) -> bool:
     return isinstance(error, ValueError | OSError | BadInput | duckdb.Error | NodeExecutionError)
 
 
-def _one_line(error: BaseException) -> str:
-    """The error's message on one line, escaped (it may echo names and file names)."""
-    from btlog.render.escape import safe
-
-    text = str(error).strip() or type(error).__name__
-    return safe(" ".join(text.split()))
-
-
 def main(argv: Sequence[str] | None = None) -> int:
     """Run the command line; returns the exit code."""
     parser = build_parser()
@@ -247,7 +241,7 @@ def main(argv: Sequence[str] | None = None) -> int:
     except Exception as error:
         if os.environ.get("BTLOG_DEBUG"):
             traceback.print_exc()
-        print(f"btlog {args.command}: {_one_line(error)}", file=sys.stderr)
+        print(f"btlog {args.command}: {safe(one_line(error))}", file=sys.stderr)
         return EXIT_BAD_INPUT
 
 

@@ -17,16 +17,13 @@ as BT.CPP's StatefulActionNode; a condition with no RUNNING time completes in it
 
 from __future__ import annotations
 
-import json
 import random
 from collections.abc import Callable
 from dataclasses import dataclass, field, replace
 from pathlib import Path
 from typing import Any
 
-import yaml
-
-from btlog import limits
+from btlog import documents
 from btlog.executor.actions import StatefulAction
 from btlog.executor.behavior import Runtime
 from btlog.executor.blackboard import Blackboard
@@ -72,48 +69,29 @@ class FailSpec:
         return self.key if self.activation == 1 else f"{self.key}@{self.activation}"
 
 
-def _parse_entry(value: Any, base: Outcome, where: str) -> Outcome:
+def _parse_entry(value: Any, base: Outcome) -> Outcome:
+    """One entry of a script (already valid by the schema) over the default ``base``."""
     if isinstance(value, str):
-        return replace(base, status=_status(value, where))
-    if not isinstance(value, dict):
-        raise OutcomesError(f"{where}: expected a status or a mapping, got {value!r}")
-    unknown = set(value) - {"status", "duration", "ticks"}
-    if unknown:
-        raise OutcomesError(f"{where}: unknown field {sorted(unknown)[0]!r}")
+        return replace(base, status=_status(value))
     outcome = base
     if "status" in value:
-        outcome = replace(outcome, status=_status(value["status"], where))
+        outcome = replace(outcome, status=_status(value["status"]))
     if "duration" in value:
-        duration = value["duration"]
-        if not isinstance(duration, int | float) or isinstance(duration, bool) or duration < 0:
-            raise OutcomesError(
-                f"{where}: duration must be a number of seconds >= 0, got {duration!r}"
-            )
-        outcome = replace(outcome, duration_ns=round(duration * 1e9), ticks=None)
+        outcome = replace(outcome, duration_ns=round(value["duration"] * 1e9), ticks=None)
     if "ticks" in value:
-        ticks = value["ticks"]
-        if not isinstance(ticks, int) or isinstance(ticks, bool) or ticks < 0:
-            raise OutcomesError(f"{where}: ticks must be a whole number >= 0, got {ticks!r}")
-        outcome = replace(outcome, ticks=ticks, duration_ns=0)
+        outcome = replace(outcome, ticks=int(value["ticks"]), duration_ns=0)
     return outcome
 
 
-def _status(value: Any, where: str) -> Status:
-    if isinstance(value, str) and value.strip().upper() in ("SUCCESS", "FAILURE", "RUNNING"):
-        status = Status[value.strip().upper()]
-        if status is RUNNING:
-            raise OutcomesError(f"{where}: RUNNING is not a result; use duration or ticks")
-        return status
-    raise OutcomesError(f"{where}: status must be SUCCESS or FAILURE, got {value!r}")
+def _status(value: str) -> Status:
+    return Status[value.strip().upper()]
 
 
 @dataclass
 class Outcomes:
     """A parsed outcomes file: the default, the per-key scripts, and failure overrides."""
 
-    default: Outcome = field(
-        default_factory=lambda: _parse_entry(DEFAULT_ACTION, Outcome(), "default")
-    )
+    default: Outcome = field(default_factory=lambda: _parse_entry(DEFAULT_ACTION, Outcome()))
     condition_default: Outcome = field(default_factory=Outcome)
     scripts: dict[str, list[Any]] = field(default_factory=dict)
     failures: list[FailSpec] = field(default_factory=list)
@@ -122,53 +100,34 @@ class Outcomes:
 
     @classmethod
     def from_mapping(cls, data: Any, where: str = "outcomes") -> Outcomes:
-        """Build from the mapping of an outcomes file."""
-        if data is None:
-            data = {}
-        if not isinstance(data, dict):
-            raise OutcomesError(f"{where}: the top level must be a mapping")
-        unknown = set(data) - {"default", "nodes"}
-        if unknown:
-            raise OutcomesError(
-                f"{where}: unknown key {sorted(unknown)[0]!r} (expected default and nodes)"
-            )
+        """Build from the mapping of an outcomes file (checked by its schema)."""
+        try:
+            documents.validate(data, "outcomes", where)
+        except documents.DocumentError as error:
+            raise OutcomesError(str(error)) from None
+        data = data or {}
         outcomes = cls(source=data)
         if "default" in data:
-            outcomes.default = _parse_entry(data["default"], Outcome(), f"{where}: default")
+            outcomes.default = _parse_entry(data["default"], Outcome())
             outcomes.condition_default = Outcome(outcomes.default.status)
-        nodes = data.get("nodes") or {}
-        if not isinstance(nodes, dict):
-            raise OutcomesError(f"{where}: nodes must be a mapping of node keys")
-        for key, value in nodes.items():
-            entries = value if isinstance(value, list) else [value]
-            if not entries:
-                raise OutcomesError(f"{where}: {key!r} has an empty list")
-            for i, entry in enumerate(entries):
-                _parse_entry(entry, outcomes.default, f"{where}: {key!r}[{i}]")
-            outcomes.scripts[str(key)] = entries
+        for key, value in (data.get("nodes") or {}).items():
+            outcomes.scripts[str(key)] = value if isinstance(value, list) else [value]
         return outcomes
 
     @classmethod
     def load(cls, path: str | Path) -> Outcomes:
         """Read an outcomes file (YAML or JSON)."""
         try:
-            text = limits.read_bounded(path).decode("utf-8")
-        except (OSError, UnicodeDecodeError, limits.LimitError) as error:
-            raise OutcomesError(f"{path}: cannot read the outcomes file: {error}") from None
-        try:
-            data = json.loads(text) if str(path).endswith(".json") else yaml.safe_load(text)
-        except (json.JSONDecodeError, yaml.YAMLError) as error:
-            mark = getattr(error, "problem_mark", None)
-            line = f":{mark.line + 1}" if mark is not None else ""
-            raise OutcomesError(
-                f"{path}{line}: not valid YAML/JSON: {str(error).splitlines()[0]}"
-            ) from None
+            data, lines = documents.read(path, "outcomes file")
+            documents.validate(data, "outcomes", str(path), lines)
+        except documents.DocumentError as error:
+            raise OutcomesError(str(error)) from None
         return cls.from_mapping(data, str(path))
 
     def check_keys(self, tree: Tree) -> None:
         """Every key and --fail key must match at least one node of the tree."""
         for key in [*self.scripts, *(f.key for f in self.failures)]:
-            if not tree.find(key):
+            if not tree.lookup(key):
                 raise OutcomesError(f"outcomes key {key!r} matches no node of the tree")
 
     def plan_for(self, node: Node, tree: Tree) -> list[Outcome]:
@@ -176,13 +135,13 @@ class Outcomes:
         entries take no RUNNING time unless they give one."""
         base = self.condition_default if node.kind == CONDITION else self.default
         for key in (node.path, node.name, None if node.name else node.type):
-            if key and key in self.scripts and node in tree.find(key):
-                return [_parse_entry(entry, base, key) for entry in self.scripts[key]]
+            if key and key in self.scripts and node in tree.lookup(key, leaves_only=True):
+                return [_parse_entry(entry, base) for entry in self.scripts[key]]
         return [base]
 
     def forced_failures(self, node: Node, tree: Tree) -> set[int]:
         """Activations of ``node`` that --fail makes fail."""
-        return {f.activation for f in self.failures if node in tree.find(f.key)}
+        return {f.activation for f in self.failures if node in tree.lookup(f.key, leaves_only=True)}
 
 
 Effect = Callable[["ScriptedLeaf", Status], Status]
@@ -294,7 +253,7 @@ def scripted_leaf_factory(
 
 def _has_explicit_script(node: Node, tree: Tree, outcomes: Outcomes) -> bool:
     return any(
-        key in outcomes.scripts and node in tree.find(key)
+        key in outcomes.scripts and node in tree.lookup(key, leaves_only=True)
         for key in (node.path, node.name, node.type)
         if key
     )

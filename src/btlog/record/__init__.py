@@ -10,7 +10,7 @@
 - ``RecordingError`` is what bad input raises, one line naming file and problem.
 
 The wire format (topics, message layouts, metadata keys) is ``btlog.record.format``; its
-JSON Schemas are served by ``btlog.record.schemas.schema_text``.
+JSON Schemas are served by ``btlog.schema.schema_text``.
 """
 
 from btlog.record.reader import (
@@ -23,7 +23,7 @@ from btlog.record.reader import (
 )
 from btlog.record.recorder import Recorder
 from btlog.record.recover import RecoveryReport, recover
-from btlog.record.schemas import schema_text
+from btlog.schema import schema_text
 
 __all__ = [
     "MessageStream",

@@ -32,7 +32,7 @@ from mcap.writer import CompressionType, Writer
 import btlog
 from btlog.events import Subscriber, TickRecord, TreeMutation
 from btlog.record import format as fmt
-from btlog.record.schemas import schema_text
+from btlog.schema import schema_text
 from btlog.status import STATUS_NAMES, Status
 from btlog.tree.model import Tree
 

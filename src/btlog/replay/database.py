@@ -42,6 +42,7 @@ from typing import Any, NamedTuple
 import duckdb
 import orjson
 
+from btlog.errors import one_line
 from btlog.record.reader import RecordingError
 from btlog.replay import cache
 from btlog.replay import ingest as ingestion
@@ -181,7 +182,7 @@ class RunDatabase:
         except OSError as error:
             raise ReplayError(f"{name}: cannot read: {error.strerror or error}") from None
         except duckdb.Error as error:
-            raise ReplayError(f"{name}: cannot build its read model: {_one_line(error)}") from None
+            raise ReplayError(f"{name}: cannot build its read model: {one_line(error)}") from None
         run = Run(self, catalog, self._unique_id(catalog), name)
         self._runs.append(run)
         self._create_views()
@@ -202,7 +203,7 @@ class RunDatabase:
         except (OSError, duckdb.IOException) as error:
             if not os.access(path, os.R_OK):
                 raise
-            reason = getattr(error, "strerror", None) or _one_line(error)
+            reason = getattr(error, "strerror", None) or one_line(error)
             self.notices.append(
                 f"cannot write the cache folder {root} ({reason}); "
                 f"{Path(path).name} is read into memory instead"
@@ -306,7 +307,7 @@ class RunDatabase:
             columns = [d[0] for d in cursor.description or ()]
             rows = cursor.fetchall() if cursor.description else []
         except duckdb.Error as error:
-            raise ReplayError(f"SQL error: {_one_line(error)}") from None
+            raise ReplayError(f"SQL error: {one_line(error)}") from None
         return columns, rows
 
     def close(self) -> None:
@@ -326,10 +327,6 @@ def _file_column(table: str, run: Run) -> str:
     if table != "runs":
         return ""
     return ", '" + run.info.file.replace("'", "''") + "' AS file"
-
-
-def _one_line(error: BaseException) -> str:
-    return " ".join(str(error).split())
 
 
 # -- one run --------------------------------------------------------------------------------

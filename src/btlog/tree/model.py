@@ -192,22 +192,31 @@ class Tree:
         """The first uid not used yet (fresh uids for inserted nodes start here)."""
         return max(self.nodes) + 1
 
-    def find(self, key: str) -> list[Node]:
-        """Nodes matching an outcomes/expectations key: its path, its name, or (for a
-        nameless node) its type. A key may match several nodes."""
-        return [n for n in self if n.path == key or n.name == key or (not n.name and n.type == key)]
+    def lookup(self, key: str, leaves_only: bool = False) -> list[Node]:
+        """The nodes a key (of outcomes, expectations, --fail, --node) names: by path,
+        else by name, else nameless nodes by type (several when the key is ambiguous).
 
-    def lookup(self, key: str) -> list[Node]:
-        """The nodes a key names when one node is wanted: by path, else by name, else
-        nameless nodes by type (several when the key is ambiguous)."""
+        ``leaves_only`` looks among execution nodes only, as outcomes do: there "detect
+        chuck" is the nameless leaf of that type, not a Sequence named so."""
+        nodes = [n for n in self if n.is_execution] if leaves_only else list(self)
         for matches in (
-            [n for n in self if n.path == key],
-            [n for n in self if n.name == key],
-            [n for n in self if not n.name and n.type == key],
+            [n for n in nodes if n.path == key],
+            [n for n in nodes if n.name == key],
+            [n for n in nodes if not n.name and n.type == key],
         ):
             if matches:
                 return matches
         return []
+
+    def lookup_one(self, key: str) -> Node:
+        """The one node a key names; LookupError when it names none or several."""
+        found = self.lookup(key)
+        if not found:
+            raise LookupError(f"node {key!r} matches no node of the tree")
+        if len(found) > 1:
+            paths = ", ".join(repr(n.path) for n in found[:3])
+            raise LookupError(f"node {key!r} matches {len(found)} nodes; use a path (e.g. {paths})")
+        return found[0]
 
     def describe(self) -> dict:
         """The tree as the JSON-ready ``/btlog/tree`` message."""

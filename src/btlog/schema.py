@@ -12,8 +12,8 @@ from functools import cache
 from importlib.resources import files
 from pathlib import Path
 
-#: The repository's ``schemas/`` folder, two levels above ``src/btlog``.
-_REPOSITORY_SCHEMAS = Path(__file__).resolve().parents[3] / "schemas"
+#: The repository's ``schemas/`` folder, beside ``src/``.
+_REPOSITORY_SCHEMAS = Path(__file__).resolve().parents[2] / "schemas"
 
 
 @cache
