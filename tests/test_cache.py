@@ -14,7 +14,6 @@ from pathlib import Path
 
 import orjson
 import pytest
-from btlog.record.schemas import schema_text
 from mcap.well_known import MessageEncoding, SchemaEncoding
 from mcap.writer import CompressionType, Writer
 
@@ -24,6 +23,7 @@ from btlog.record import Recorder, iter_messages, read_metadata
 from btlog.record import format as fmt
 from btlog.replay import cache
 from btlog.replay.database import cache_location, open_runs
+from btlog.schema import schema_text
 from btlog.tree.loader import load_tree_text
 
 ROOT = Path(__file__).resolve().parent.parent
