@@ -243,9 +243,10 @@ def _timeline_line(row: dict) -> str:
 
 # -- sql ---------------------------------------------------------------------------------
 def sql(args: Namespace) -> int:
-    """``btlog sql``: run a query over one or many runs."""
+    """``btlog sql``: run a query over one or many runs, read-only (``RunDatabase.lock``)."""
     database = _open_runs(*args.runs)
     try:
+        database.lock()
         columns, rows = database.sql(args.query)
     finally:
         database.close()

@@ -149,7 +149,15 @@ def build_parser() -> argparse.ArgumentParser:
         help="read commands from FILE instead of the keyboard ('-': stdin)",
     )
 
-    sql = commands.add_parser("sql", help="SQL over the read model")
+    sql = commands.add_parser(
+        "sql",
+        help="SQL over the read model (read-only)",
+        description="Run one SQL query over the read model of one or more recordings. The "
+        "query is read-only: it runs after the runs are attached (their caches read-only), "
+        "with DuckDB's external access disabled and its configuration locked, so it "
+        "cannot read or write files (read_csv, glob, COPY TO, ATTACH), install or load "
+        "extensions, or change any later answer.",
+    )
     sql.add_argument("runs", metavar="RUN", nargs="+")
     sql.add_argument("query", metavar="QUERY")
     sql.add_argument("--format", choices=("table", "csv", "json"), default="table")

@@ -161,6 +161,8 @@ class RunDatabase:
         self.notices: list[str] = []
         self._runs: list[Run] = []
         self._attached: set[Path] = set()
+        #: True once ``lock`` made user SQL read-only
+        self.locked = False
 
     # -- adding runs ---------------------------------------------------------------------
     def add(
@@ -170,6 +172,8 @@ class RunDatabase:
         cache_dir: str | os.PathLike | None = None,
     ) -> Run:
         """Open one more recording (from its cache when valid) and return its run."""
+        if self.locked:
+            raise ReplayError("this database is locked for user SQL; open runs before lock()")
         name = os.path.abspath(os.fspath(path))
         catalog = f"run{len(self._runs)}"
         try:
@@ -295,12 +299,25 @@ class RunDatabase:
         known = ", ".join(run.run_id for run in self._runs)
         raise ReplayError(f"no run {str(key)!r} in this database (runs: {known})")
 
+    def lock(self) -> None:
+        """Make the connection safe for SQL from anyone: ``sql`` then runs only queries
+        (``SELECT`` in any form, ``EXPLAIN``: no ``DETACH``/``ATTACH``, ``DELETE``,
+        ``COPY``, ``INSTALL``…), with no file or network access (DuckDB's
+        ``enable_external_access``: no ``read_csv``, ``glob``) and no setting that can
+        change any more (``lock_configuration``). The runs' caches stay attached
+        read-only, so no query can change a later answer. No run can be added afterwards."""
+        self.con.execute("SET enable_external_access = false")
+        self.con.execute("SET lock_configuration = true")
+        self.locked = True
+
     def sql(
         self, query: str, params: Sequence | dict | None = None
     ) -> tuple[list[str], list[tuple]]:
         """Run ``query`` (with ``params`` bound to its ``?`` or ``$name`` placeholders);
-        returns (column names, rows)."""
+        returns (column names, rows). Once ``lock``ed, only queries are run."""
         try:
+            if self.locked:
+                _only_queries(self.con, query)
             cursor = (
                 self.con.execute(query, params) if params is not None else self.con.execute(query)
             )
@@ -319,6 +336,19 @@ class RunDatabase:
 
     def __exit__(self, *exc_info: object) -> None:
         self.close()
+
+
+def _only_queries(con: duckdb.DuckDBPyConnection, query: str) -> None:
+    """ReplayError unless every statement of ``query`` is a query (SELECT, or EXPLAIN
+    without ANALYZE, which would run the statement)."""
+    for statement in con.extract_statements(query):
+        kind = statement.type
+        analyze = kind == duckdb.StatementType.EXPLAIN and re.match(
+            r"\s*EXPLAIN\s+ANALY[SZ]E\b", statement.query, re.IGNORECASE
+        )
+        if kind not in (duckdb.StatementType.SELECT, duckdb.StatementType.EXPLAIN) or analyze:
+            name = "EXPLAIN ANALYZE" if analyze else kind.name
+            raise ReplayError(f"SQL error: btlog sql runs read-only queries; {name} is refused")
 
 
 def _file_column(table: str, run: Run) -> str:
