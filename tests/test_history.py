@@ -3,6 +3,7 @@ word for word on the project's trees, asked live (``--ask``) and post hoc."""
 
 from __future__ import annotations
 
+import json
 import subprocess
 import sys
 from pathlib import Path
@@ -145,3 +146,54 @@ def test_cli_ask_at_end(tmp_path: Path) -> None:
         check=True,
     )
     assert done.stdout.strip() == TAXI_PICKUP_FAILS["What went wrong?"]
+
+
+def _explain(path: Path, *options: str) -> str:
+    done = subprocess.run(
+        [sys.executable, "-m", "btlog.cli.main", "explain", str(path), *options],
+        capture_output=True,
+        text=True,
+        check=True,
+    )
+    return done.stdout
+
+
+def test_story_of_a_run_with_retries_and_a_fallback(tmp_path: Path) -> None:
+    path = _record(
+        tmp_path,
+        KITTING,
+        "kitting",
+        outcomes={"nodes": {"look at chuck": ["FAILURE", "FAILURE", "SUCCESS"]}},
+    )
+    lines = _explain(path).splitlines()
+    assert lines[0].startswith("Goal: build a gearbox kit. Outcome: SUCCESS after ")
+    assert lines[1] == "Failures: 2."
+    assert lines[2].endswith(": I could not insert large gear because look at chuck failed.")
+    assert lines[3] == "    fell back to reset arm; no alternative left; retried (attempt 2 of 3)."
+    assert lines[4].endswith(
+        ": I am retrying for attempt 1 to go insert large gear. "
+        "I could not insert large gear because look at chuck failed."
+    )
+    assert lines[5] == "    fell back to reset arm; no alternative left; retried (attempt 3 of 3)."
+    assert lines[6] == "Subgoals:"
+    assert [line.split(":")[0].strip() for line in lines[7:]] == [
+        "go insert large gear",
+        "go pick screw",
+        "go place screw",
+    ]
+    assert "SUCCESS in" in lines[7] and "attempts" not in lines[7]
+
+
+def test_story_json_of_a_failed_run(tmp_path: Path) -> None:
+    path = _record(tmp_path, TAXI, "taxi", fail=["pick up passenger"])
+    told = json.loads(_explain(path, "--json"))
+    assert told["outcome"] == "FAILURE"
+    assert told["why"] == TAXI_PICKUP_FAILS["What went wrong?"]
+    (episode,) = told["episodes"]
+    assert episode["leaf"] == "pick up passenger"
+    assert episode["t_ns"] == 7_000_000_000
+    assert episode["handling"] == ["propagated to go deliver passenger: the run failed"]
+    assert [(s["subgoal"], s["result"], s["attempts"]) for s in told["subgoals"]] == [
+        ("go pick up passenger", "FAILURE", 1),
+        ("go drop off passenger", None, 0),
+    ]

@@ -147,7 +147,10 @@ def ask(args: Namespace) -> int:
 
 
 def explain(args: Namespace) -> int:
-    """``btlog explain``: Q1–Q6 at a moment, and what the recording says is missing."""
+    """``btlog explain``: the run's story, or Q1–Q6 at a moment (``--at``), and what the
+    recording says is missing."""
+    if args.at is None:
+        return _story(args)
     with _moment(args.run, args.at) as (run, tree, state, _at_ns):
         answers = explain_all(tree, state, run.history())
         notes = [run.info.metadata["incomplete"]] if run.info.metadata.get("incomplete") else []
@@ -162,6 +165,23 @@ def explain(args: Namespace) -> int:
         return 0
     for result in answers:
         print(f"{result.question}\n  {safe(result.text)}")
+    for note in notes:
+        print(f"Note: {safe(note)}")
+    return 0
+
+
+def _story(args: Namespace) -> int:
+    """``btlog explain REC``: the whole run, top down."""
+    from btlog.explain.story import story
+
+    with _moment(args.run, "end") as (run, tree, state, _at_ns):
+        told = story(tree, state, run.history())
+        notes = [run.info.metadata["incomplete"]] if run.info.metadata.get("incomplete") else []
+    if args.json:
+        _print_json({**told.to_json(), "notes": notes})
+        return 0
+    for line in told.lines():
+        print(safe(line))
     for note in notes:
         print(f"Note: {safe(note)}")
     return 0

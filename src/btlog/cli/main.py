@@ -118,9 +118,13 @@ def build_parser() -> argparse.ArgumentParser:
     ask.add_argument("question", metavar="QUESTION")
     ask.add_argument("--json", action="store_true", help="JSON output")
 
-    explain = commands.add_parser("explain", help="answer Q1-Q6 at a moment")
+    explain = commands.add_parser("explain", help="the run's story, or Q1-Q6 at a moment (--at)")
     explain.add_argument("run", metavar="RUN")
-    _add_moment(explain)
+    explain.add_argument(
+        "--at",
+        metavar="WHEN",
+        help="answer Q1-Q6 at this moment (without it: the whole run's story)",
+    )
     explain.add_argument("--json", action="store_true", help="JSON output")
 
     show = commands.add_parser("show", help="the tree with statuses at a moment")

@@ -124,10 +124,9 @@ def _apply(stepper: Stepper, line: str) -> bool:
         stepper.render()
     elif word == "ask":
         tree, state = stepper.state()
-        stepper.console.print(
-            answer(tree, state, parts[1] if len(parts) > 1 else "", stepper.run.history()).text,
-            highlight=False,
-        )
+        question = parts[1] if len(parts) > 1 else ""
+        text = answer(tree, state, question, stepper.run.history()).text
+        stepper.console.print(safe(text), highlight=False)
     elif word == "g" and len(parts) > 1:
         stepper.go(parts[1])
         stepper.render()

@@ -25,7 +25,7 @@ PROPAGATED = "propagated"
 class Reaction:
     """What a handler did about a child's failure: ``kind`` is ``RETRIED`` (``attempt``
     of ``attempts``, None when unlimited), ``FELL_BACK`` (to ``target``) or
-    ``PROPAGATED`` (the handler failed too)."""
+    ``PROPAGATED`` (the handler failed too, after ``attempts`` attempts for a retry)."""
 
     kind: str
     target: Node | None = None
@@ -39,7 +39,9 @@ class Reaction:
             return f"retried (attempt {self.attempt}{of})"
         if self.kind == FELL_BACK and self.target is not None:
             return f"fell back to {self.target.description}"
-        return self.kind
+        if self.attempts is not None:
+            return f"gave up after {self.attempts} attempts"
+        return "no alternative left"
 
 
 class FailureHandler(Protocol):
@@ -81,7 +83,7 @@ class RetryHandler:
         attempts = attempts_of(node, self.port)
         if attempts is None or failures < attempts:
             return Reaction(RETRIED, child, failures + 1, attempts)
-        return Reaction(PROPAGATED)
+        return Reaction(PROPAGATED, attempts=attempts)
 
 
 class RecoveryHandler:
