@@ -178,3 +178,32 @@ def test_attach_reports_transitions_lost_beyond_btcpps_buffer(tmp_path: Path) ->
     assert result.full_polls >= 1
     assert any("may be lost" in w for w in result.build.warnings)
     assert result.build.transitions <= 1000 * result.full_polls + 1000
+
+
+def test_attach_killed_leaves_a_readable_prefix(tmp_path: Path) -> None:
+    port = _free_port_pair()
+    sync = tmp_path / "sync"
+    sync.mkdir()
+    busy = """<root BTCPP_format="4"><BehaviorTree ID="Main">
+      <KeepRunningUntilFailure name="forever"><AlwaysSuccess name="beat"/></KeepRunningUntilFailure>
+    </BehaviorTree></root>"""
+    payload = {"xml": busy, "outcomes": {}, "max_ticks": 100, "tick_sleep_ms": 20}
+    payload |= {"groot2_port": port, "sync_dir": str(sync)}
+    out = tmp_path / "killed.mcap"
+    env = {**os.environ, "PYTHONPATH": str(ROOT / "src"), "NO_COLOR": "1"}
+    command = [sys.executable, "-m", "btlog.cli.main", "attach", f"tcp://127.0.0.1:{port}"]
+    with ThreadPoolExecutor(max_workers=1) as pool:
+        oracle = pool.submit(run_oracle, payload, 60)
+        _wait_for(sync / "ready")
+        proc = subprocess.Popen([*command, "-o", str(out)], env=env, stdout=subprocess.PIPE)
+        assert proc.stdout is not None and proc.stdout.readline().startswith(b"attached to")
+        (sync / "go").touch()
+        time.sleep(1.6)  # past one flush interval
+        proc.kill()
+        proc.wait(timeout=10)
+        _wait_for(sync / "ran")
+        (sync / "quit").touch()
+        assert oracle.result(timeout=30) is not None
+    recording = open_recording(out)
+    assert recording.truncated
+    assert len(recording.events) > 20  # a second of beats, at least

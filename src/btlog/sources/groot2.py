@@ -250,6 +250,7 @@ def _poll_until_done(
     names = blackboard_names(tree)
     entries: dict[tuple[str, str], Any] = {}
     next_blackboard = began
+    next_flush = began + options.flush_interval
     try:
         while True:
             try:
@@ -264,6 +265,9 @@ def _poll_until_done(
                 _poll_blackboard(client, builder, names, entries, builder.last_t_ns)
                 next_blackboard = now + options.blackboard_interval
             hooks.on_poll(builder, t_ns)
+            if now >= next_flush:  # crash safety even while the tree is idle
+                builder.flush()
+                next_flush = now + options.flush_interval
             if options.duration is not None and now - began >= options.duration:
                 return
             if stop is not None and stop.wait(options.poll_interval):
