@@ -30,7 +30,7 @@ from btlog.events import (
     TickRecord,
     TreeMutation,
 )
-from btlog.status import FAILURE, IDLE, RUNNING, SUCCESS, Status
+from btlog.status import FAILURE, IDLE, RUNNING, Status
 from btlog.tree.model import EXECUTION_KINDS, Tree, link_nodes
 
 RETRY_TYPE = "RetryUntilSuccessful"
@@ -191,8 +191,3 @@ class StateProjection(Subscriber):
         root = next(n for n in nodes if n.parent is None)
         self.tree.insert_after(parent, after, root, mutation.seq)
         self._index_tree()
-
-
-def is_completed(status: Status) -> bool:
-    """SUCCESS or FAILURE."""
-    return status is SUCCESS or status is FAILURE

@@ -190,6 +190,15 @@ class Behavior:
         if self._conditions is not None and self._conditions.on_halted is not None:
             self._run_script(self._conditions.on_halted)
 
+    def wake_up_early(self, child_was: Status, more_to_do: bool) -> bool:
+        """BT.CPP's early return: a child that went from IDLE to done in this very tick,
+        with more to do, makes its parent return RUNNING and the executor tick again at
+        once (True when that happens)."""
+        if child_was is IDLE and more_to_do:
+            self.runtime.wake_up = True
+            return True
+        return False
+
     def halt_child(self, index: int) -> None:
         """Halt child ``index`` if RUNNING, then reset it."""
         child = self.children[index]

@@ -102,8 +102,7 @@ class SequenceWithMemory(Sequence):
                 self.index += 1
                 continue
             self.index += 1
-            if before is IDLE and self.index < len(children):
-                self.runtime.wake_up = True
+            if self.wake_up_early(before, self.index < len(children)):
                 return RUNNING
         return self._finish()
 

@@ -90,8 +90,7 @@ class _Loop(DecoratorBehavior):
                 limit = self.get_input(self.limit_port, "int")
                 loop = self.count < limit or limit == -1
                 self.reset_child()
-                if before is IDLE and loop:
-                    self.runtime.wake_up = True
+                if self.wake_up_early(before, loop):
                     return RUNNING
             elif result is RUNNING:
                 return RUNNING
