@@ -61,7 +61,12 @@ from btlog.replay.moments import (
     parse_started_at,
     resolve_moment,
 )
-from btlog.replay.snapshots import DEFAULT_SNAPSHOT_EVERY, EventBatch, load_mutations
+from btlog.replay.snapshots import (
+    DEFAULT_SNAPSHOT_EVERY,
+    EventBatch,
+    load_mutations,
+    load_snapshot,
+)
 from btlog.replay.sql_history import SqlHistory
 from btlog.replay.tables import INGEST_VERSION, PUBLIC_TABLES, create_schema, first_row
 from btlog.state import State, StateProjection
@@ -462,7 +467,8 @@ class Run:
             {"run_id": self._stored_id, "seq": seq},
         )
         mutations = [m for m in self.mutations if seq <= m.seq < seq + self.snapshot_every]
-        block = (orjson.loads(state), EventBatch.from_block(events, mutations))
+        snapshot = load_snapshot(self.con, self._stored_id, state, self._prefix)
+        block = (snapshot, EventBatch.from_block(events, mutations))
         self._blocks[index] = block
         if len(self._blocks) > self.CACHED_BLOCKS:
             self._blocks.popitem(last=False)

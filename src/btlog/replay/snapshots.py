@@ -11,6 +11,7 @@ from __future__ import annotations
 
 from bisect import bisect_left, bisect_right
 from dataclasses import dataclass, field
+from typing import Any
 
 import duckdb
 import orjson
@@ -32,6 +33,10 @@ from btlog.tree.model import Tree
 DEFAULT_SNAPSHOT_EVERY = 512
 #: Events fetched from DuckDB per query while building snapshots.
 FOLD_BATCH = 1 << 18
+#: Blackboard values whose JSON is longer than this are not copied into every snapshot:
+#: a snapshot names the write that set them (its seq), and loading it reads that one row
+#: of ``blackboard``, so a large value is stored and loaded once, not once per snapshot.
+INLINE_VALUE_BYTES = 4096
 _STATUS_BY_CODE = tuple(Status)
 
 
@@ -48,6 +53,8 @@ class EventBatch:
     status: list[int]
     writes: list[BlackboardWrite]
     mutations: list[TreeMutation] = field(default_factory=list)
+    #: seqs of the writes whose value is longer than ``INLINE_VALUE_BYTES`` as JSON
+    large: set[int] = field(default_factory=set)
 
     def __post_init__(self) -> None:
         others = self.writes + self.mutations if self.mutations else self.writes
@@ -80,6 +87,16 @@ class EventBatch:
             on_status(seq, t_ns, tick, uid, codes[prev], codes[status])
         for event in others[k:last]:
             _apply_other(projection, event)
+
+    def note_large(self, origins: dict[tuple[str, str], int], lo: int, hi: int) -> None:
+        """Update ``origins`` ((scope, key) → seq of the write that set a large value)
+        with this batch's writes with ``lo <= seq < hi``."""
+        for write in self.writes:
+            if lo <= write.seq < hi:
+                if write.seq in self.large:
+                    origins[(write.scope, write.key)] = write.seq
+                else:
+                    origins.pop((write.scope, write.key), None)
 
     def bound_at_most(self, attribute: str, limit: int) -> int | None:
         """One past the last seq of the batch whose ``t_ns`` (or ``tick``) is at most
@@ -162,7 +179,8 @@ def fetch_events(
         )
         for seq, t, tick, scope, key, value, kind, writer in rows
     ]
-    return EventBatch(*columns, writes, [m for m in mutations if lo <= m.seq < hi])
+    large = {row[0] for row in rows if row[5] is not None and len(row[5]) > INLINE_VALUE_BYTES}
+    return EventBatch(*columns, writes, [m for m in mutations if lo <= m.seq < hi], large)
 
 
 def _seq_of(event: BlackboardWrite | TreeMutation) -> int:
@@ -197,38 +215,68 @@ def build_snapshots(
     projection = StateProjection(tree)
     batch_size = max(every, FOLD_BATCH // every * every)
     rows: list[tuple] = []
+    origins: dict[tuple[str, str], int] = {}
     for lo in range(0, events, batch_size):
         hi = min(lo + batch_size, events)
         batch = fetch_events(con, run_id, lo, hi, mutations)
         for start in range(lo, hi, every):
             stop = min(start + every, hi)
-            rows.append(
-                _snapshot_row(
-                    projection.state, start, batch.first_keys(start, stop), batch.block(start, stop)
-                )
-            )
+            first, block = batch.first_keys(start, stop), batch.block(start, stop)
+            rows.append(_snapshot_row(projection.state, origins, start, first, block))
             batch.fold(projection, start, stop)
+            batch.note_large(origins, start, stop)
     if events % every == 0:
-        rows.append(
-            _snapshot_row(
-                projection.state, events, None, EventBatch([], [], [], [], [], [], []).block(0, 0)
-            )
-        )
+        empty = EventBatch([], [], [], [], [], [], []).block(0, 0)
+        rows.append(_snapshot_row(projection.state, origins, events, None, empty))
     _insert_snapshots(con, run_id, rows)
     return len(rows)
 
 
-def _snapshot_row(state: State, seq: int, first: tuple[int, int] | None, block: bytes) -> tuple:
+def _snapshot_row(
+    state: State,
+    origins: dict[tuple[str, str], int],
+    seq: int,
+    first: tuple[int, int] | None,
+    block: bytes,
+) -> tuple:
     first_t, first_tick = (None, None) if first is None else first
-    return (
-        seq,
-        state.t_ns,
-        state.tick,
-        first_t,
-        first_tick,
-        orjson.dumps(state.to_json(), default=repr).decode(),
-        block,
-    )
+    return (seq, state.t_ns, state.tick, first_t, first_tick, snapshot_json(state, origins), block)
+
+
+def snapshot_json(state: State, origins: dict[tuple[str, str], int]) -> str:
+    """The state as stored in a snapshot row: ``State.to_json`` with each large value
+    (``origins``: (scope, key) → seq of the write that set it) left out — its place kept
+    with null — and named in ``blackboard_refs`` by that seq instead."""
+    data = state.to_json()
+    if origins:
+        blackboard = {scope: dict(entries) for scope, entries in state.blackboard.items()}
+        refs: dict[str, dict[str, int]] = {}
+        for (scope, key), seq in origins.items():
+            blackboard[scope][key] = None
+            refs.setdefault(scope, {})[key] = seq
+        data["blackboard"], data["blackboard_refs"] = blackboard, refs
+    return orjson.dumps(data, default=repr).decode()
+
+
+def load_snapshot(
+    con: duckdb.DuckDBPyConnection, run_id: str, text: str, prefix: str = ""
+) -> dict[str, Any]:
+    """A snapshot row's state as ``State.from_json`` reads it: the large values it names
+    by seq are read from the ``blackboard`` table (``prefix``: the catalog)."""
+    data = orjson.loads(text)
+    refs = data.pop("blackboard_refs", None)
+    if refs:
+        seqs = [seq for entries in refs.values() for seq in entries.values()]
+        rows = con.execute(
+            f"SELECT seq, value FROM {prefix}blackboard "
+            "WHERE run_id = $run_id AND list_contains($seqs, seq)",
+            {"run_id": run_id, "seqs": seqs},
+        ).fetchall()
+        values = {seq: None if value is None else orjson.loads(value) for seq, value in rows}
+        for scope, entries in refs.items():
+            for key, seq in entries.items():
+                data["blackboard"][scope][key] = values[seq]
+    return data
 
 
 def _insert_snapshots(con: duckdb.DuckDBPyConnection, run_id: str, rows: list[tuple]) -> None:
