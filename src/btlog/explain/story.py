@@ -29,6 +29,8 @@ from btlog.tree.model import SUBTREE, Node, Tree
 
 #: Handled failures looked at (the rest are counted).
 MAX_EPISODES = 200
+#: Above this many episodes, those that read the same are told once.
+SCREEN = 12
 
 
 @dataclass
@@ -66,6 +68,7 @@ class Subgoal:
     result: str | None
     first_ns: int | None
     last_ns: int | None
+    last_start_ns: int | None = None
 
     def to_json(self) -> dict:
         """JSON-ready form."""
@@ -76,7 +79,23 @@ class Subgoal:
             "result": self.result,
             "start_ns": self.first_ns,
             "end_ns": self.last_ns,
+            "last_attempt_start_ns": self.last_start_ns,
         }
+
+    def text(self) -> str:
+        """E.g. ``go pick screw: SUCCESS in 19.600 s (43.700 s to 63.300 s)``."""
+        result = self.result or ("not started" if not self.attempts else "not finished")
+        text = f"{'  ' * self.depth}{self.name}: {result}"
+        if self.first_ns is not None and self.last_ns is not None:
+            text += (
+                f" in {seconds(self.last_ns - self.first_ns)} s"
+                f" ({seconds(self.first_ns)} s to {seconds(self.last_ns)} s)"
+            )
+        if self.attempts > 1:
+            text += f", {self.attempts} attempts"
+            if self.last_start_ns is not None and self.last_ns is not None:
+                text += f", the last in {seconds(self.last_ns - self.last_start_ns)} s"
+        return text
 
 
 @dataclass
@@ -120,23 +139,17 @@ class Story:
         for episode in self.episodes:
             when = f"{seconds(episode.t_ns)} s"
             if episode.count > 1:
-                when += f" to {seconds(episode.last_t_ns)} s, {episode.count} times"
+                when += f" … {seconds(episode.last_t_ns)} s, {episode.count} times"
             out.append(f"  {when}: {episode.sentence}")
             out.append(f"    {'; '.join(episode.handling)}.")
         if self.failures > MAX_EPISODES:
-            out.append(f"  … and more: only the first {MAX_EPISODES} are told.")
+            out.append(
+                f"  {self.failures} failures were handled in all; the first {MAX_EPISODES} "
+                "are told."
+            )
         if self.subgoals:
             out.append("Subgoals:")
-        for sub in self.subgoals:
-            took = (
-                ""
-                if sub.first_ns is None or sub.last_ns is None
-                else f" in {seconds(sub.last_ns - sub.first_ns)} s"
-                f" ({seconds(sub.first_ns)} s to {seconds(sub.last_ns)} s)"
-            )
-            tries = f", {sub.attempts} attempts" if sub.attempts > 1 else ""
-            result = sub.result or ("not started" if not sub.attempts else "not finished")
-            out.append(f"  {'  ' * sub.depth}{sub.name}: {result}{took}{tries}")
+        out += [f"  {sub.text()}" for sub in self.subgoals]
         return out
 
 
@@ -150,6 +163,9 @@ def _subgoal(node: Node, now: int, history: History) -> Subgoal:
     starts = history.count([node.uid], ANY_STATUS, 0, now, starts=True)
     first = history.first([node.uid], ANY_STATUS, 0, now, starts=True)
     done = history.last([node.uid], COMPLETIONS, 0, now)
+    last_start = (
+        None if done is None else history.last([node.uid], ANY_STATUS, 0, done.seq, starts=True)
+    )
     depth = sum(1 for a in node.ancestors() if a.kind == SUBTREE)
     return Subgoal(
         node.description,
@@ -158,6 +174,7 @@ def _subgoal(node: Node, now: int, history: History) -> Subgoal:
         None if done is None else done.status.name,
         None if first is None else first.t_ns,
         None if done is None else done.t_ns,
+        None if last_start is None else last_start.t_ns,
     )
 
 
@@ -225,23 +242,39 @@ def _episodes(tree: Tree, state: State, history: History) -> tuple[list[Episode]
 
 
 def _grouped(episodes: list[Episode]) -> list[Episode]:
-    """Consecutive episodes that read the same, told once with a count."""
-    grouped: list[Episode] = []
-    for episode in sorted(episodes, key=lambda e: e.seq):
+    """Episodes in time order; those that read the same (same sentence, same handling)
+    told once with a count — consecutive ones, or all of them when there are more than
+    ``SCREEN`` kinds, so that a run failing often still fits a screen."""
+    ordered = sorted(episodes, key=lambda e: e.seq)
+    for episode in ordered:
         episode.last_t_ns = episode.t_ns
-        if not episode.handling:
-            episode.handling = [PROPAGATED]
+        episode.handling = episode.handling or [PROPAGATED]
+    grouped: list[Episode] = []
+    for episode in ordered:
         previous = grouped[-1] if grouped else None
-        if (
-            previous is not None
-            and previous.sentence == episode.sentence
-            and previous.handling == episode.handling
-        ):
-            previous.count += 1
-            previous.last_t_ns = episode.t_ns
+        if previous is not None and _same(previous, episode):
+            _merge(previous, episode)
         else:
             grouped.append(episode)
-    return grouped
+    if len(grouped) <= SCREEN:
+        return grouped
+    kinds: dict[tuple[str, tuple[str, ...]], Episode] = {}
+    for episode in grouped:
+        key = (episode.sentence, tuple(episode.handling))
+        if key in kinds:
+            _merge(kinds[key], episode)
+        else:
+            kinds[key] = episode
+    return list(kinds.values())
+
+
+def _same(a: Episode, b: Episode) -> bool:
+    return a.sentence == b.sentence and a.handling == b.handling
+
+
+def _merge(into: Episode, episode: Episode) -> None:
+    into.count += episode.count
+    into.last_t_ns = max(into.last_t_ns, episode.last_t_ns)
 
 
 def story(tree: Tree, state: State, history: History) -> Story:
