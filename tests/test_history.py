@@ -75,8 +75,12 @@ def test_kitting_insertion_fails_through_every_retry(tmp_path: Path) -> None:
     assert _ask(path, "end", "Why did trial and error insert fail?") == (
         "I could not trial and error insert because trial and error insert failed."
     )
+    # The SubTree did not fail, its Sequence of the same name did: the answer is about it.
     assert _ask(path, "end", "Why did go insert large gear fail?") == (
-        "go insert large gear has not failed."
+        "I could not go insert large gear because trial and error insert failed."
+    )
+    assert _ask(path, "end", "When did go insert large gear last succeed?") == (
+        "go insert large gear last succeeded at 43.700 s."
     )
 
 

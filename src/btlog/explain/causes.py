@@ -6,7 +6,10 @@ fails when a child fails, a Fallback when its last child fails, a retry when its
 attempt fails, an Inverter fails when its child succeeds). From a completion, following
 that child down, in event order, to an execution node gives the *cause*: the leaf whose
 result decided it. It is ``succeeded`` rather than ``failed`` when the leaf's SUCCESS
-was turned into a failure on the way up (an Inverter, a ForceFailure).
+was turned into a failure on the way up (an Inverter, a ForceFailure). One exception: a
+fallback whose last alternative failed only by design (a clean-up under ForceFailure,
+like the kitting tree's "reset arm") failed because of the failure it fell back from,
+so the chain follows its first child's failure instead.
 
 **What went wrong? (Q6) over the history.** When Algorithm 7 has something to say at
 the moment, that is the answer (word for word the paper's). Otherwise, after the root
@@ -27,7 +30,7 @@ Each handler's last window is looked at (not earlier ones of the same handler).
 from __future__ import annotations
 
 from btlog.explain.failure import NOTHING_WRONG, what_went_wrong
-from btlog.explain.handlers import handler_of
+from btlog.explain.handlers import FallbackHandler, handler_of
 from btlog.explain.hierarchy import current_nodes, per_node
 from btlog.history import ANY_STATUS, COMPLETIONS, History, Transition
 from btlog.state import State
@@ -66,8 +69,22 @@ def cause(tree: Tree, node: Node, completion: Transition, history: History) -> T
         child = history.last(uids, COMPLETIONS, lo, completion.seq)
         if child is None or child.uid not in tree.nodes:
             break
+        if completion.status is FAILURE and isinstance(handler_of(node), FallbackHandler):
+            child = _original_failure(tree, node, child, lo, history)
         node, completion = tree.node(child.uid), child
     return completion
+
+
+def _original_failure(
+    tree: Tree, fallback: Node, last: Transition, lo: int, history: History
+) -> Transition:
+    """A fallback failed because its last alternative failed; when that alternative
+    failed only by design (its cause *succeeded*: a ForceFailure clean-up), the failure
+    it was the alternative to — the first child's — is the cause."""
+    if cause(tree, tree.node(last.uid), last, history).status is not SUCCESS:
+        return last
+    first = history.last([fallback.children[0].uid], (FAILURE,), lo, last.seq)
+    return last if first is None else first
 
 
 def because(tree: Tree, node: Node, completion: Transition, history: History) -> str:

@@ -86,7 +86,7 @@ class RetryHandler:
         return Reaction(PROPAGATED, attempts=attempts)
 
 
-class RecoveryHandler:
+class RecoveryHandler(FallbackHandler):
     """Nav2's RecoveryNode: a failure of the first child runs the recovery (the second
     child), whose success retries the first, ``number_of_retries`` times at most."""
 

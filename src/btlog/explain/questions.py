@@ -30,7 +30,7 @@ from btlog.explain.hierarchy import (
     why,
 )
 from btlog.explain.insertion import InsertionPlan, plan_insertion
-from btlog.explain.recall import find_node, how_long, when_last, why_failed, why_not
+from btlog.explain.recall import about, find_nodes, how_long, when_last, why_failed, why_not
 from btlog.history import History
 from btlog.state import State
 from btlog.tree.model import Node, Tree
@@ -51,6 +51,14 @@ QUESTIONS = {
     "when_succeed": "When did X last succeed?",
     "when_start": "When did X last start?",
     "how_long": "How long did X take?",
+}
+#: The event that decides which of several same-named nodes a question is about.
+_EVENT_OF = {
+    "why_failed": "fail",
+    "when_fail": "fail",
+    "when_succeed": "succeed",
+    "when_start": "start",
+    "how_long": "start",
 }
 #: Questions about one node X (``{X}`` in the templates).
 NODE_INTENTS = ("why_failed", "why_not", "when_fail", "when_succeed", "when_start", "how_long")
@@ -216,13 +224,14 @@ def _about_node(
     now_ns: int,
 ) -> Answer:
     """The questions about one node X."""
-    node = find_node(tree, what)
-    if node is None:
+    nodes = find_nodes(tree, what)
+    if not nodes:
         return Answer(question, intent, f'Sorry. I don\'t know "{what.strip()}".')
     if history is None:
         from btlog.history import LiveHistory
 
         history = LiveHistory(tree)  # no past known: an empty history
+    node = about(nodes, _EVENT_OF.get(intent), state, history)
     if intent == "why_failed":
         text = why_failed(tree, node, state, history)
     elif intent == "why_not":

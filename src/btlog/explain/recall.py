@@ -28,14 +28,14 @@ def _fold(text: str) -> str:
     return " ".join(text.casefold().split())
 
 
-def find_node(tree: Tree, text: str) -> Node | None:
-    """The node ``text`` names: by path, else name, else type (nameless nodes first);
-    the outermost (then first in tree order) of several."""
+def find_nodes(tree: Tree, text: str) -> list[Node]:
+    """The nodes ``text`` names, outermost first: by path, else by name, else by type
+    (nameless nodes first)."""
     wanted = _fold(text.strip().strip("\"'“”‘’"))
-    best: tuple[int, int, int, Node] | None = None
+    groups: dict[int, list[tuple[int, int, Node]]] = {}
     for order, node in enumerate(tree):
         name = _fold(node.name)
-        if wanted.startswith("the ") and name != wanted and name == wanted[4:]:
+        if wanted.startswith("the ") and name == wanted[4:]:
             name = wanted
         if node.path == text or _fold(node.path) == wanted:
             rank = 0
@@ -45,10 +45,28 @@ def find_node(tree: Tree, text: str) -> Node | None:
             rank = 2 if not node.name else 3
         else:
             continue
-        key = (rank, node.depth, order, node)
-        if best is None or key[:3] < best[:3]:
-            best = key
-    return None if best is None else best[3]
+        groups.setdefault(rank, []).append((node.depth, order, node))
+    if not groups:
+        return []
+    return [node for _, _, node in sorted(groups[min(groups)], key=lambda m: m[:2])]
+
+
+def find_node(tree: Tree, text: str) -> Node | None:
+    """The outermost node ``text`` names (see ``find_nodes``), or None."""
+    found = find_nodes(tree, text)
+    return found[0] if found else None
+
+
+def about(nodes: list[Node], event: str | None, state: State, history: History) -> Node:
+    """Of several nodes with the name asked about, the outermost that the question can
+    be about: the outermost one with the ``event`` ("fail", "succeed", "start") in its
+    history, else the outermost."""
+    if event is not None and len(nodes) > 1:
+        statuses, starts, _, _ = EVENTS[event]
+        for node in nodes:
+            if history.last([node.uid], statuses, 0, state.seq, starts=starts) is not None:
+                return node
+    return nodes[0]
 
 
 def why_failed(tree: Tree, node: Node, state: State, history: History) -> str:

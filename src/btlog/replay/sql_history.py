@@ -24,6 +24,9 @@ if TYPE_CHECKING:
 
 #: Runs with at most this many events are queried in memory (see the module docstring).
 IN_MEMORY_EVENTS = 200_000
+#: The first window (events) looked at for a last/first match, and how it grows.
+FIRST_WINDOW = 1 << 14
+WINDOW_GROWTH = 16
 
 
 _COLUMNS = "seq, t_ns, uid, enum_code(prev_status), enum_code(status)"
@@ -72,12 +75,23 @@ class SqlHistory(History):
         params = {"lo": lo, "hi": hi}
         if kind == "count":
             return int(self._rows(where, "", params, "count(*)")[0][0])
-        tail = {
-            "last": "ORDER BY seq DESC LIMIT 1",
-            "first": "ORDER BY seq LIMIT 1",
-            "all": f"ORDER BY seq LIMIT {int(limit)}",
-        }[kind]
-        return [_transition(row) for row in self._rows(where, tail, params)]
+        if kind == "all":
+            tail = f"ORDER BY seq LIMIT {int(limit)}"
+            return [_transition(row) for row in self._rows(where, tail, params)]
+        return self._nearest(kind, where, lo, hi)
+
+    def _nearest(self, kind: str, where: str, lo: int, hi: int) -> list[Transition]:
+        """The last (or first) match, looked for in growing windows from ``hi`` back
+        (from ``lo`` on): the answer is usually near, and the rows are in seq order,
+        so a narrow window reads a few blocks instead of the whole table."""
+        tail = "ORDER BY seq DESC LIMIT 1" if kind == "last" else "ORDER BY seq LIMIT 1"
+        width = FIRST_WINDOW
+        while True:
+            window = (max(lo, hi - width), hi) if kind == "last" else (lo, min(hi, lo + width))
+            rows = self._rows(where, tail, {"lo": window[0], "hi": window[1]})
+            if rows or window == (lo, hi):
+                return [_transition(row) for row in rows]
+            width *= WINDOW_GROWTH
 
     def state_after(self, count: int) -> tuple[Tree, State]:
         """See ``History.state_after``: the read model's snapshot and tail."""
