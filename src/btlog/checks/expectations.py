@@ -528,12 +528,17 @@ def subgoal_check(found: SubgoalDivergence) -> CheckResult:
     return CheckResult(False, what, expected, "; ".join(parts))
 
 
-def rerun(run_path: str | os.PathLike, tree: str | os.PathLike | None = None) -> RerunReport:
+def rerun(
+    run_path: str | os.PathLike,
+    tree: str | os.PathLike | None = None,
+    keep: str | os.PathLike | None = None,
+) -> RerunReport:
     """Execute the run's tree again with its recorded settings and compare the behaviours.
 
     The tree is the recorded tree file as it is now, or ``tree``. The re-run uses the
     recorded domain, seed, outcomes, ``--fail`` specs and live questions, on the simulated
-    clock, into a temporary file. Any divergent action or another final status fails.
+    clock, into a temporary file (or into ``keep``, which is left in place). Any divergent
+    action or another final status fails.
     """
     from btlog.runner import RunConfig, execute
 
@@ -541,7 +546,7 @@ def rerun(run_path: str | os.PathLike, tree: str | os.PathLike | None = None) ->
     tree_path = tree_for_rerun(run_path, recorded.metadata, tree)
     config = replace(RunConfig.from_metadata(recorded.metadata, tree=tree_path), realtime=False)
     with tempfile.TemporaryDirectory(prefix="btlog-rerun-") as folder:
-        result = execute(config, Path(folder) / "rerun.mcap")
+        result = execute(config, keep if keep is not None else Path(folder) / "rerun.mcap")
         again = open_recording(result.path)
     recorded_status = final_status_of(recorded)
     divergence = diverge(

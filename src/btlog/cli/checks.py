@@ -13,6 +13,7 @@ from __future__ import annotations
 
 import json
 from argparse import Namespace
+from pathlib import Path
 
 from rich.text import Text
 
@@ -66,8 +67,31 @@ def _check_one(
     path: str, expectations: Expectations | None, args: Namespace
 ) -> tuple[list[CheckResult], RerunReport | None]:
     results = check_run(path, expectations) if expectations is not None else []
-    report = rerun(path, args.tree) if args.rerun else None
+    keep = _rerun_file(path, args) if args.rerun and getattr(args, "html", None) else None
+    report = rerun(path, args.tree, keep) if args.rerun else None
     return results, report
+
+
+def _rerun_file(path: str, args: Namespace) -> Path:
+    """Where a re-run is kept for the HTML report: beside the report."""
+    return Path(args.html).with_name(f"{Path(args.html).stem}-{Path(path).stem}-rerun.mcap")
+
+
+def _write_html(args: Namespace, outcomes: list) -> None:
+    """``--html``: the viewer of the first failing run (beside its re-run when there is
+    one), with the check's report above it."""
+    from btlog.cli.view import write_export
+
+    for path, results, report in outcomes:
+        if _passed(results, report):
+            continue
+        lines = [f"FAIL  {path}"] + [r.report() for r in results]
+        if report is not None:
+            lines.append(report.render())
+        paths = [path] + ([str(_rerun_file(path, args))] if report is not None else [])
+        write_export(paths, args.html, "\n".join(lines))
+        print(f"report: {safe(args.html)}")
+        return
 
 
 def _passed(results: list[CheckResult], report: RerunReport | None) -> bool:
@@ -102,6 +126,15 @@ def check(args: Namespace) -> int:
     expectations = _check_options(args)
     outcomes = [(path, *_check_one(path, expectations, args)) for path in args.runs]
     failed = [path for path, results, report in outcomes if not _passed(results, report)]
+    if args.html:
+        try:
+            if failed:
+                _write_html(args, outcomes)
+        finally:
+            for path in args.runs if args.rerun else ():
+                kept = _rerun_file(path, args)
+                for leftover in (kept, kept.with_name(kept.name + ".duckdb")):
+                    leftover.unlink(missing_ok=True)
     if args.json:
         print(json.dumps(_json(outcomes, expectations, not failed), indent=2))
     else:

@@ -184,6 +184,20 @@ def build_parser() -> argparse.ArgumentParser:
     )
     check.add_argument("--tree", metavar="TREE", help="with --rerun: this tree file instead")
     check.add_argument("--json", action="store_true", help="JSON output")
+    check.add_argument(
+        "--html", metavar="FILE", help="when a check fails, write the viewer of that run to FILE"
+    )
+
+    view = commands.add_parser(
+        "view",
+        help="see a run in the browser (tree, timeline, answers)",
+        description="Serve a web viewer of one run, or of two side by side, on 127.0.0.1.",
+    )
+    view.add_argument("run", metavar="REC", help="a recording")
+    view.add_argument("other", metavar="REC2", nargs="?", help="a second recording to compare")
+    view.add_argument("--port", metavar="P", type=int, default=0, help="port (default: a free one)")
+    view.add_argument("--no-browser", action="store_true", help="do not open a browser")
+    view.add_argument("--export", metavar="FILE", help="write one self-contained HTML file instead")
 
     recover = commands.add_parser("recover", help="salvage a truncated recording")
     recover.add_argument("broken", metavar="BROKEN")
@@ -202,7 +216,7 @@ def build_parser() -> argparse.ArgumentParser:
 
 
 def _handlers():
-    from btlog.cli import cache, checks, commands, replay, sources
+    from btlog.cli import cache, checks, commands, replay, sources, view
 
     return {
         "run": commands.run,
@@ -220,6 +234,7 @@ def _handlers():
         "export": sources.export,
         "attach": sources.attach,
         "cache": cache.cache_command,
+        "view": view.view,
     }
 
 

@@ -1,0 +1,215 @@
+"""What the viewer shows, as JSON, computed from the read model (``btlog.replay.database``).
+
+One ``RunView`` per opened run answers the page's questions: the run and its nodes
+(``meta``), the state at a moment (statuses, current nodes, blackboard with writers, the
+answers to the standard questions), the events around a moment, the Gantt segments, a
+step by tick, and any question (``answer``, the very function ``btlog ask`` calls).
+A moment is a *count*: the number of events applied (``seq:N`` is count N + 1).
+"""
+
+from __future__ import annotations
+
+import re
+from typing import Any
+
+from btlog.explain.behaviours import diff_paths
+from btlog.explain.divergence import to_json
+from btlog.explain.hierarchy import current_nodes
+from btlog.explain.questions import _PATTERNS, EXPLAIN_INTENTS, QUESTIONS, answer, explain
+from btlog.replay.database import Run, RunDatabase
+from btlog.state import State, StateProjection
+from btlog.tree.model import Node, Tree
+
+#: Events listed on each side of the moment.
+EVENT_WINDOW = 40
+#: Time buckets of the Gantt: segments of one node and status starting in the same
+#: bucket are drawn as one bar.
+GANTT_BUCKETS = 1500
+
+
+def node_json(node: Node) -> dict[str, Any]:
+    """A node as the page draws it."""
+    return {
+        "uid": node.uid,
+        "parent": None if node.parent is None else node.parent.uid,
+        "kind": node.kind,
+        "type": node.type,
+        "name": node.name,
+        "path": node.path,
+        "ports": {k: {"value": p.value, "dir": p.direction} for k, p in node.ports.items()},
+        "added": node.added_seq,
+    }
+
+
+def question_patterns() -> list[list[str]]:
+    """The question recogniser's (intent, regex) pairs in JavaScript syntax, so the
+    exported page recognises the same paraphrases as ``btlog ask``."""
+    return [[intent, re.sub(r"\(\?P<", "(?<", p.pattern)] for intent, p in _PATTERNS]
+
+
+def final_tree(run: Run) -> Tree:
+    """The run's tree with every recorded mutation applied (each node knows when it was
+    added)."""
+    return StateProjection(run.tree, State(mutations=list(run.mutations))).tree
+
+
+def answers_json(tree: Tree, state: State) -> list[dict[str, Any]]:
+    """The standard answers (Q1-Q6) at a state."""
+    return [a.to_json() for a in explain(tree, state)]
+
+
+class RunView:
+    """The viewer's queries on one run of a ``RunDatabase``."""
+
+    def __init__(self, database: RunDatabase, run: Run, label: str) -> None:
+        self.database = database
+        self.run = run
+        self.label = label
+        self.tree = final_tree(run)
+
+    @property
+    def events(self) -> int:
+        """How many events the run has."""
+        return self.run.extent.events
+
+    def meta(self) -> dict[str, Any]:
+        """The run: label, extent, metadata and every node (of the final tree)."""
+        info = self.run.info
+        return {
+            "label": self.label,
+            "run_id": info.run_id,
+            "file": info.file,
+            "tree_name": info.tree_name,
+            "final_status": info.final_status,
+            "events": self.events,
+            "duration_ns": self.run.extent.duration_ns,
+            "last_tick": self.run.extent.last_tick,
+            "started_at": None if info.started_at is None else info.started_at.isoformat(),
+            "warnings": list(info.warnings),
+            "nodes": [node_json(n) for n in self.tree],
+            "root": self.tree.root.uid,
+        }
+
+    def clamp(self, count: int) -> int:
+        """``count`` within 0..events."""
+        return max(0, min(self.events, count))
+
+    def resolve(self, moment: str) -> int:
+        """The count of a moment (any form ``--at`` takes; ``seq:-1`` is the start)."""
+        if moment.strip() == "seq:-1":
+            return 0
+        return self.run.resolve(moment).count
+
+    def count_at_time(self, t_ns: int) -> int:
+        """The count at a time since the start (every event with ``t_ns`` at most it)."""
+        return self.run.extent.count_at(t_ns) if t_ns >= 0 else 0
+
+    def state(self, count: int) -> dict[str, Any]:
+        """Everything the page shows at a moment."""
+        tree, state = self.run.state_after(self.clamp(count))
+        current = [n.uid for n in current_nodes(tree, state)]
+        return {
+            "count": self.clamp(count),
+            "t_ns": state.t_ns,
+            "tick": state.tick,
+            "status": {str(uid): s.name for uid, s in state.status.items() if s.name != "IDLE"},
+            "present": sorted(tree.nodes),
+            "current": current,
+            "blackboard": self.blackboard(state, count),
+            "answers": answers_json(tree, state),
+        }
+
+    def blackboard(self, state: State, count: int) -> list[dict[str, Any]]:
+        """The blackboard at a state, each entry with its last writer and write seq."""
+        _cols, rows = self.database.sql(
+            "SELECT scope, key, arg_max(writer_uid, seq), max(seq) FROM blackboard "
+            "WHERE run_id = $run AND seq < $count GROUP BY scope, key",
+            {"run": self.run.run_id, "count": count},
+        )
+        writers = {(scope, key): (writer, seq) for scope, key, writer, seq in rows}
+        entries = []
+        for scope, values in sorted(state.blackboard.items()):
+            for key, value in sorted(values.items()):
+                writer, seq = writers.get((scope, key), (None, None))
+                entries.append(
+                    {"scope": scope, "key": key, "value": value, "writer": writer, "seq": seq}
+                )
+        return entries
+
+    def event_rows(self, count: int, before: int = EVENT_WINDOW) -> dict[str, Any]:
+        """The events around a moment: ``before`` events up to it and as many after."""
+        lo = max(0, self.clamp(count) - before)
+        hi = min(self.events, self.clamp(count) + before)
+        if hi <= lo:
+            return {"lo": lo, "rows": []}
+        entries = self.run.timeline(start=f"seq:{lo}", end=f"seq:{hi - 1}")
+        return {"lo": lo, "rows": [event_json(e) for e in entries]}
+
+    def step_tick(self, count: int, direction: int) -> int:
+        """The count at the end of the next (``direction`` 1) or previous (-1) tick that
+        has events."""
+        count = self.clamp(count)
+        extent = self.run.extent
+        if direction > 0:
+            if count >= self.events:
+                return count
+            _tree, next_event = self.run.state_after(count + 1)
+            return extent.count_after_tick(next_event.tick)
+        if count == 0:
+            return 0
+        _tree, last = self.run.state_after(count)
+        return extent.count_after_tick(last.tick - 1)
+
+    def gantt(self) -> dict[str, Any]:
+        """The execution nodes' non-IDLE intervals, columnar: uid, status, start, end."""
+        duration = max(1, self.run.extent.duration_ns)
+        _cols, rows = self.database.sql(
+            """WITH t AS (
+                 SELECT uid, t_ns, status,
+                        lead(t_ns) OVER (PARTITION BY uid ORDER BY seq) AS t_end
+                 FROM transitions WHERE run_id = $run AND uid IN (
+                   SELECT uid FROM nodes WHERE run_id = $run
+                   AND kind IN ('action', 'condition')))
+               SELECT uid, status::VARCHAR, min(t_ns), max(coalesce(t_end, $dur))
+               FROM t WHERE status <> 'IDLE'
+               GROUP BY uid, status, floor(t_ns * $buckets / $dur)
+               ORDER BY 1, 3""",
+            {"run": self.run.run_id, "dur": duration, "buckets": GANTT_BUCKETS},
+        )
+        return {
+            "uid": [r[0] for r in rows],
+            "status": [r[1] for r in rows],
+            "start": [r[2] for r in rows],
+            "end": [r[3] for r in rows],
+        }
+
+    def ask(self, count: int, question: str) -> dict[str, Any]:
+        """The answer ``btlog ask`` gives at this moment (an error message for questions
+        it does not understand)."""
+        tree, state = self.run.state_after(self.clamp(count))
+        try:
+            return answer(tree, state, question).to_json()
+        except ValueError as error:
+            return {"question": question, "intent": None, "answer": str(error), "nodes": []}
+
+
+def event_json(entry: Any) -> dict[str, Any]:
+    """One timeline entry as the event list shows it."""
+    row = {"seq": entry.seq, "t_ns": entry.t_ns, "tick": entry.tick, "kind": entry.kind}
+    row["uid"] = entry.uid
+    if entry.kind == "status":
+        row["prev"] = entry.prev_status
+        row["status"] = entry.status
+    elif entry.kind == "write":
+        row.update(scope=entry.scope, key=entry.key, value=entry.value)
+    return row
+
+
+def standard_questions() -> list[list[str]]:
+    """The standard questions, (intent, text), in the order ``explain`` asks them."""
+    return [[intent, QUESTIONS[intent]] for intent in EXPLAIN_INTENTS]
+
+
+def divergence_json(a: str, b: str) -> dict[str, Any]:
+    """``btlog diff A B --json`` for the page's side-by-side view."""
+    return to_json(diff_paths(a, b))

@@ -1,0 +1,124 @@
+// btlog view: the side panels of a pane - the selected node (ports and their blackboard
+// values), the answers at the moment and the ask box, the event list around the moment,
+// and the blackboard with each entry's writer. Text only (textContent) for recorded data.
+"use strict";
+
+function el(tag, attrs = {}, parent = null, text = null) {
+  const e = document.createElement(tag);
+  for (const [k, v] of Object.entries(attrs)) e.setAttribute(k, v);
+  if (text !== null) e.textContent = text;
+  if (parent) parent.appendChild(e);
+  return e;
+}
+
+function showValue(value) {
+  return typeof value === "string" ? JSON.stringify(value) : JSON.stringify(value);
+}
+
+function seconds(ns) { return (ns / 1e9).toFixed(3) + " s"; }
+
+class SidePanels {
+  /** The panels of one pane; `pane` gives nodes, the moment and the ask call. */
+  constructor(box, pane) {
+    this.pane = pane;
+    this.nodeBox = el("section", { class: "selection" }, box);
+    el("h2", {}, this.nodeBox, "Node");
+    this.nodeBody = el("div", { class: "muted" }, this.nodeBox, "Click a node to see its ports.");
+    const answers = el("section", { class: "answers" }, box);
+    el("h2", {}, answers, "Answers at this moment");
+    this.answerList = el("dl", {}, answers);
+    const form = el("form", { class: "ask" }, answers);
+    this.askInput = el("input", { type: "text", name: "q", placeholder: "Ask: What went wrong?",
+      "aria-label": "question" }, form);
+    el("button", { type: "submit" }, form, "Ask");
+    this.askAnswer = el("div", { class: "askanswer", "aria-live": "polite" }, answers);
+    form.addEventListener("submit", (e) => {
+      e.preventDefault();
+      this.pane.ask(this.askInput.value);
+    });
+    this.askInput.addEventListener("keydown", (e) => e.stopPropagation());
+    const events = el("section", {}, box);
+    el("h2", {}, events, "Events");
+    this.eventList = el("div", { class: "events" }, events);
+    const board = el("section", {}, box);
+    el("h2", {}, board, "Blackboard");
+    this.board = el("table", { class: "kv blackboard" }, board);
+  }
+
+  name(uid) {
+    if (uid === null || uid === undefined) return "";
+    const n = this.pane.nodes.get(uid);
+    return n ? `${n.name || n.type} #${uid}` : `#${uid}`;
+  }
+
+  showAnswers(answers) {
+    this.answerList.replaceChildren();
+    for (const a of answers) {
+      el("dt", {}, this.answerList, a.question);
+      el("dd", {}, this.answerList, a.answer);
+    }
+  }
+
+  showAsked(result) {
+    this.askAnswer.textContent = result.answer;
+  }
+
+  showEvents(data, count) {
+    this.eventList.replaceChildren();
+    let now = null;
+    for (const row of data.rows) {
+      const who = this.name(row.uid);
+      let text;
+      if (row.kind === "status") text = `${who}  ${row.prev} \u2192 ${row.status}`;
+      else if (row.kind === "write") {
+        text = `${row.scope || "(root)"}.${row.key} = ${showValue(row.value)}  by ${who}`;
+      } else text = `inserted ${who}`;
+      const line = el("div", { "data-seq": row.seq }, this.eventList,
+        `${String(row.seq).padStart(6)}  ${seconds(row.t_ns).padStart(10)}  t${row.tick}  ${text}`);
+      if (row.seq === count - 1) { line.classList.add("now"); now = line; }
+      else if (row.seq >= count) line.classList.add("future");
+      line.addEventListener("click", () => this.pane.moveTo(row.seq + 1));
+    }
+    if (now) {
+      const box = this.eventList;
+      box.scrollTop = now.offsetTop - box.offsetTop - box.clientHeight / 2;
+    }
+  }
+
+  showBlackboard(entries) {
+    this.board.replaceChildren();
+    const head = el("tr", {}, this.board);
+    for (const h of ["key", "value", "writer"]) el("th", {}, head, h);
+    if (!entries.length) el("td", { colspan: 3, class: "muted" }, el("tr", {}, this.board), "(empty)");
+    for (const e of entries) {
+      const tr = el("tr", {}, this.board);
+      el("td", {}, tr, (e.scope ? e.scope + "." : "") + e.key);
+      el("code", {}, el("td", {}, tr), showValue(e.value));
+      el("td", {}, tr, e.writer === null ? "" : `${this.name(e.writer)} @${e.seq}`);
+    }
+  }
+
+  showNode(uid, state) {
+    this.nodeBody.replaceChildren();
+    this.nodeBody.className = "";
+    if (uid === null) return;
+    const n = this.pane.nodes.get(uid);
+    el("div", {}, this.nodeBody, `${n.name || n.type}`).style.fontWeight = "600";
+    el("div", { class: "muted" }, this.nodeBody,
+      `${n.type} \u00b7 ${n.kind} \u00b7 #${uid} \u00b7 ${state.status[uid] || "IDLE"}`);
+    el("div", { class: "muted" }, this.nodeBody, n.path);
+    const ports = Object.entries(n.ports);
+    if (!ports.length) return;
+    const table = el("table", { class: "kv ports" }, this.nodeBody);
+    const head = el("tr", {}, table);
+    for (const h of ["port", "as written", "blackboard now"]) el("th", {}, head, h);
+    for (const [port, p] of ports) {
+      const tr = el("tr", {}, table);
+      el("td", {}, tr, `${port} (${p.dir})`);
+      el("td", {}, tr, p.value);
+      const key = /^\s*\{(.*)\}\s*$/.exec(p.value);
+      const found = key ? state.blackboard.find((b) => b.key === key[1].trim()) : null;
+      el("code", {}, el("td", {}, tr), key ? (found ? showValue(found.value) : "(unset)") : "");
+    }
+  }
+}

@@ -1,0 +1,114 @@
+// btlog view: the timeline under the tree - a time axis and one row per execution node
+// with its non-IDLE intervals (a Gantt of the run: RUNNING bars, SUCCESS and FAILURE
+// marks), and a cursor at the moment. Drag on it to scrub: onScrub(t_ns).
+"use strict";
+
+const STATUS_COLOURS = { RUNNING: "#e0a100", SUCCESS: "#2e7d32", FAILURE: "#c62828",
+  SKIPPED: "#00838f" };
+const LABEL_W = 150, AXIS_H = 20, ROW_H = 11;
+
+function niceStep(span) {
+  const raw = span / 8, base = Math.pow(10, Math.floor(Math.log10(raw)));
+  for (const m of [1, 2, 5, 10]) if (base * m >= raw) return base * m;
+  return base * 10;
+}
+
+function formatSeconds(ns) {
+  const s = ns / 1e9;
+  return s >= 100 ? s.toFixed(0) + " s" : s >= 10 ? s.toFixed(1) + " s" : s.toFixed(2) + " s";
+}
+
+class Timeline {
+  /** A Gantt of `nodes` (execution nodes, tree order) over `durationNs`. */
+  constructor(box, nodes, durationNs, onScrub) {
+    this.box = box;
+    this.rows = nodes.filter((n) => n.kind === "action" || n.kind === "condition");
+    this.rowOf = new Map(this.rows.map((n, i) => [n.uid, i]));
+    this.duration = Math.max(1, durationNs);
+    this.onScrub = onScrub;
+    this.canvas = document.createElement("canvas");
+    this.canvas.setAttribute("aria-label", "timeline");
+    box.appendChild(this.canvas);
+    this.cursorLine = document.createElement("div");
+    this.cursorLine.className = "cursor";
+    box.appendChild(this.cursorLine);
+    this.cursor = 0;
+    this.segments = null;
+    this.installScrub();
+    new ResizeObserver(() => this.draw()).observe(box);
+  }
+
+  setSegments(segments) { this.segments = segments; this.draw(); }
+
+  setCursor(tNs) { this.cursor = tNs; this.drawCursor(); }
+
+  xOf(tNs) {
+    const w = this.canvas.width / (window.devicePixelRatio || 1) - LABEL_W - 10;
+    return LABEL_W + (tNs / this.duration) * w;
+  }
+
+  tOf(x) {
+    const w = this.canvas.width / (window.devicePixelRatio || 1) - LABEL_W - 10;
+    return Math.max(0, Math.min(this.duration, ((x - LABEL_W) / w) * this.duration));
+  }
+
+  draw() {
+    const ratio = window.devicePixelRatio || 1;
+    const width = this.box.clientWidth, height = AXIS_H + this.rows.length * ROW_H + 4;
+    if (!width) return;
+    this.canvas.width = width * ratio; this.canvas.height = height * ratio;
+    this.canvas.style.width = width + "px"; this.canvas.style.height = height + "px";
+    const ctx = this.canvas.getContext("2d");
+    ctx.setTransform(ratio, 0, 0, ratio, 0, 0);
+    ctx.fillStyle = "#fff"; ctx.fillRect(0, 0, width, height);
+    ctx.font = "10px system-ui, sans-serif"; ctx.textBaseline = "middle";
+    const step = niceStep(this.duration);
+    ctx.strokeStyle = "#eee"; ctx.fillStyle = "#777";
+    for (let t = 0; t <= this.duration; t += step) {
+      const x = Math.round(this.xOf(t)) + 0.5;
+      ctx.beginPath(); ctx.moveTo(x, AXIS_H - 4); ctx.lineTo(x, height); ctx.stroke();
+      ctx.fillText(formatSeconds(t), x + 2, 8);
+    }
+    this.rows.forEach((n, i) => {
+      const y = AXIS_H + i * ROW_H;
+      if (i % 2) { ctx.fillStyle = "#fafafa"; ctx.fillRect(0, y, width, ROW_H); }
+      ctx.fillStyle = "#444";
+      ctx.fillText(clip(n.name || n.type, 26), 4, y + ROW_H / 2);
+    });
+    if (this.segments) {
+      const s = this.segments;
+      for (let i = 0; i < s.uid.length; i++) {
+        const row = this.rowOf.get(s.uid[i]);
+        if (row === undefined) continue;
+        const status = s.status[i];
+        const x0 = this.xOf(s.start[i]), x1 = this.xOf(s.end[i]);
+        const y = AXIS_H + row * ROW_H;
+        ctx.fillStyle = STATUS_COLOURS[status] || "#999";
+        if (status === "RUNNING") ctx.fillRect(x0, y + 2, Math.max(1, x1 - x0), ROW_H - 4);
+        else ctx.fillRect(x0 - (status === "FAILURE" ? 1 : 0), y + 1,
+          status === "FAILURE" ? 3 : Math.max(1, Math.min(2, x1 - x0)), ROW_H - 2);
+      }
+    }
+    this.drawCursor();
+  }
+
+  drawCursor() {
+    this.cursorLine.style.left = `${Math.round(this.xOf(this.cursor)) - 1}px`;
+    this.cursorLine.style.height = this.canvas.style.height;
+  }
+
+  installScrub() {
+    let dragging = false;
+    const at = (e) => {
+      const r = this.canvas.getBoundingClientRect();
+      return this.tOf(e.clientX - r.left);
+    };
+    this.canvas.addEventListener("pointerdown", (e) => {
+      dragging = true;
+      this.canvas.setPointerCapture(e.pointerId);
+      this.onScrub(at(e));
+    });
+    this.canvas.addEventListener("pointermove", (e) => { if (dragging) this.onScrub(at(e)); });
+    this.canvas.addEventListener("pointerup", () => { dragging = false; });
+  }
+}

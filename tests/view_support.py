@@ -1,0 +1,83 @@
+"""Shared pieces of the viewer's tests: recordings made for real, a served viewer."""
+
+from __future__ import annotations
+
+import os
+import shutil
+import subprocess
+import sys
+from pathlib import Path
+
+ROOT = Path(__file__).resolve().parents[1]
+RECORDINGS = ROOT / "recordings"
+CHUCK = RECORDINGS / "kitting-look-at-chuck-fails.mcap"
+ARTIFACTS = Path(os.environ.get("BTLOG_ARTIFACTS", ROOT / "tmp" / "artifacts"))
+
+#: A tree whose names and values try to be markup.
+HOSTILE_TREE = """<root BTCPP_format="4" main_tree_to_execute="Main">
+  <BehaviorTree ID="Main">
+    <Sequence name="&lt;script&gt;alert(2)&lt;/script&gt;">
+      <AlwaysSuccess name="&lt;img src=x onerror=alert(1)&gt;"/>
+      <SetBlackboard output_key="&lt;b&gt;key"
+                     value="&lt;/script&gt;&lt;img src=x onerror=alert(3)&gt;"/>
+    </Sequence>
+  </BehaviorTree>
+</root>
+"""
+HOSTILE_NAME = "<img src=x onerror=alert(1)>"
+
+
+def copy_recording(source: Path, folder: Path) -> Path:
+    """A copy of a committed recording (its read-model cache is built beside the copy)."""
+    target = folder / source.name
+    shutil.copyfile(source, target)
+    return target
+
+
+def btlog(*args: str, cwd: Path | None = None) -> subprocess.CompletedProcess:
+    """The real command line, in a subprocess."""
+    return subprocess.run(
+        [sys.executable, "-m", "btlog.cli.main", *args],
+        capture_output=True,
+        text=True,
+        cwd=cwd,
+        timeout=120,
+    )
+
+
+def hostile_recording(folder: Path) -> Path:
+    """A run of HOSTILE_TREE, recorded by ``btlog run``."""
+    tree = folder / "hostile.xml"
+    tree.write_text(HOSTILE_TREE, encoding="utf-8")
+    output = folder / "hostile.mcap"
+    done = btlog("run", str(tree), "-o", str(output), "--quiet")
+    assert done.returncode == 0, done.stderr
+    return output
+
+
+class Served:
+    """``btlog view ... --no-browser`` running in a subprocess; ``url`` is what it printed."""
+
+    def __init__(self, *recordings: Path) -> None:
+        self.process = subprocess.Popen(
+            [sys.executable, "-m", "btlog.cli.main", "view", *map(str, recordings), "--no-browser"],
+            stdout=subprocess.PIPE,
+            stderr=subprocess.PIPE,
+            text=True,
+        )
+        line = self.process.stdout.readline() if self.process.stdout else ""
+        if not line.startswith("btlog view: http://127.0.0.1:"):
+            self.stop()
+            raise RuntimeError(f"btlog view did not start: {line!r}")
+        self.url = line.split()[2]
+
+    def stop(self) -> None:
+        """Stop the server this test started."""
+        self.process.terminate()
+        try:
+            self.process.wait(timeout=10)
+        except subprocess.TimeoutExpired:
+            self.process.kill()
+        for stream in (self.process.stdout, self.process.stderr):
+            if stream:
+                stream.close()
