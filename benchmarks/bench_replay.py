@@ -104,9 +104,10 @@ def workload_cycle() -> tuple[object, list, list[TickRecord]]:
     return tree, log.events, log.ticks
 
 
-def write_recording(path: Path, events: int) -> tuple[int, int]:
-    """Record ``events`` events of the repeated workload; returns (events, ticks)."""
-    tree, cycle, ticks = workload_cycle()
+def write_recording(path: Path, events: int, run: tuple | None = None) -> tuple[int, int]:
+    """Record ``events`` events of the repeated workload (or of ``run``, a
+    ``workload_cycle``-like (tree, events, ticks)); returns (events, ticks)."""
+    tree, cycle, ticks = run if run is not None else workload_cycle()
     recorder = Recorder(path, tree, {"domain": "benchmark", "seed": 0})
     on_status, on_write, on_tick = recorder.on_status, recorder.on_write, recorder.on_tick
     span = ticks[-1].end_ns + 100_000_000

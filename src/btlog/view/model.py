@@ -10,7 +10,10 @@ A moment is a *count*: the number of events applied (``seq:N`` is count N + 1).
 from __future__ import annotations
 
 import re
+from bisect import bisect_left
 from typing import Any
+
+import orjson
 
 from btlog.explain.behaviours import diff_paths
 from btlog.explain.divergence import to_json
@@ -22,6 +25,15 @@ from btlog.tree.model import Node, Tree
 
 #: Events listed on each side of the moment.
 EVENT_WINDOW = 40
+_RANGE = "run_id = $run AND seq >= $lo AND seq < $hi"
+_EVENTS_SQL = f"""
+    SELECT seq, t_ns, tick, 'status', uid, prev_status::VARCHAR, status::VARCHAR,
+           NULL, NULL, NULL FROM transitions WHERE {_RANGE}
+    UNION ALL SELECT seq, t_ns, tick, 'write', writer_uid, NULL, NULL, scope, key,
+           value::VARCHAR FROM blackboard WHERE {_RANGE}
+    UNION ALL SELECT seq, t_ns, NULL, 'mutation', inserted_root_uid, NULL, NULL,
+           NULL, NULL, NULL FROM mutations WHERE {_RANGE}
+    ORDER BY seq"""
 #: Time buckets of the Gantt: segments of one node and status starting in the same
 #: bucket are drawn as one bar.
 GANTT_BUCKETS = 1500
@@ -66,6 +78,7 @@ class RunView:
         self.run = run
         self.label = label
         self.tree = final_tree(run)
+        self._writers: dict[tuple[str, str], tuple[list[int], list[int | None]]] | None = None
 
     @property
     def events(self) -> int:
@@ -117,33 +130,53 @@ class RunView:
             "current": current,
             "blackboard": self.blackboard(state, count),
             "answers": answers_json(tree, state),
+            "events": self.event_rows(count),
         }
+
+    def _writes(self) -> dict[tuple[str, str], tuple[list[int], list[int | None]]]:
+        """Every write's seq and writer per (scope, key), read once (seqs ascending)."""
+        if self._writers is None:
+            _cols, rows = self.database.sql(
+                "SELECT scope, key, seq, writer_uid FROM blackboard WHERE run_id = $run "
+                "ORDER BY seq",
+                {"run": self.run.run_id},
+            )
+            writers: dict[tuple[str, str], tuple[list[int], list[int | None]]] = {}
+            for scope, key, seq, writer in rows:
+                seqs, uids = writers.setdefault((scope, key), ([], []))
+                seqs.append(seq)
+                uids.append(writer)
+            self._writers = writers
+        return self._writers
 
     def blackboard(self, state: State, count: int) -> list[dict[str, Any]]:
         """The blackboard at a state, each entry with its last writer and write seq."""
-        _cols, rows = self.database.sql(
-            "SELECT scope, key, arg_max(writer_uid, seq), max(seq) FROM blackboard "
-            "WHERE run_id = $run AND seq < $count GROUP BY scope, key",
-            {"run": self.run.run_id, "count": count},
-        )
-        writers = {(scope, key): (writer, seq) for scope, key, writer, seq in rows}
+        writes = self._writes()
         entries = []
         for scope, values in sorted(state.blackboard.items()):
             for key, value in sorted(values.items()):
-                writer, seq = writers.get((scope, key), (None, None))
+                seqs, uids = writes.get((scope, key), ([], []))
+                last = bisect_left(seqs, count) - 1
+                writer, seq = (uids[last], seqs[last]) if last >= 0 else (None, None)
                 entries.append(
                     {"scope": scope, "key": key, "value": value, "writer": writer, "seq": seq}
                 )
         return entries
 
     def event_rows(self, count: int, before: int = EVENT_WINDOW) -> dict[str, Any]:
-        """The events around a moment: ``before`` events up to it and as many after."""
+        """The events around a moment: ``before`` events up to it and as many after
+        (status changes, writes with the writer's uid, insertions with the inserted
+        subtree's root)."""
         lo = max(0, self.clamp(count) - before)
         hi = min(self.events, self.clamp(count) + before)
-        if hi <= lo:
-            return {"lo": lo, "rows": []}
-        entries = self.run.timeline(start=f"seq:{lo}", end=f"seq:{hi - 1}")
-        return {"lo": lo, "rows": [event_json(e) for e in entries]}
+        _cols, rows = self.database.sql(_EVENTS_SQL, {"run": self.run.run_id, "lo": lo, "hi": hi})
+        keys = ("seq", "t_ns", "tick", "kind", "uid", "prev", "status", "scope", "key", "value")
+        events = []
+        for row in rows:
+            event = dict(zip(keys, row, strict=True))
+            event["value"] = None if event["value"] is None else orjson.loads(event["value"])
+            events.append({k: v for k, v in event.items() if v is not None or k == "uid"})
+        return {"lo": lo, "rows": events}
 
     def step_tick(self, count: int, direction: int) -> int:
         """The count at the end of the next (``direction`` 1) or previous (-1) tick that
@@ -191,18 +224,6 @@ class RunView:
             return answer(tree, state, question).to_json()
         except ValueError as error:
             return {"question": question, "intent": None, "answer": str(error), "nodes": []}
-
-
-def event_json(entry: Any) -> dict[str, Any]:
-    """One timeline entry as the event list shows it."""
-    row = {"seq": entry.seq, "t_ns": entry.t_ns, "tick": entry.tick, "kind": entry.kind}
-    row["uid"] = entry.uid
-    if entry.kind == "status":
-        row["prev"] = entry.prev_status
-        row["status"] = entry.status
-    elif entry.kind == "write":
-        row.update(scope=entry.scope, key=entry.key, value=entry.value)
-    return row
 
 
 def standard_questions() -> list[list[str]]:

@@ -58,8 +58,6 @@ class ViewerApp:
             count = self._count(view, query)
             if what == "state":
                 return view.state(count)
-            if what == "events":
-                return view.event_rows(count)
             if what == "step":
                 return {"count": view.step_tick(count, int(query.get("dir", "1")))}
             if what == "ask":

@@ -49,7 +49,6 @@ class ServerSource {
   }
   state(run, count) { return this.get(`/api/run/${run}/state?count=${count}`); }
   stateAtTime(run, tNs) { return this.get(`/api/run/${run}/state?t_ns=${Math.round(tNs)}`); }
-  events(run, count) { return this.get(`/api/run/${run}/events?count=${count}`); }
   gantt(run) { return this.get(`/api/run/${run}/gantt`); }
   async step(run, count, dir) {
     return (await this.get(`/api/run/${run}/step?count=${count}&dir=${dir}`)).count;
@@ -115,6 +114,7 @@ class EmbeddedRun {
     return {
       count, t_ns: count ? this.t[count - 1] : 0, tick: count ? this.tick[count - 1] : 0,
       status, present, current: set.current, blackboard, answers: set.answers,
+      events: this.events(count),
     };
   }
   answersAt(count) {
@@ -179,7 +179,6 @@ class EmbeddedSource {
   async stateAtTime(run, tNs) {
     return this.runs[run].state(upperBound(this.runs[run].t, tNs));
   }
-  async events(run, count) { return this.runs[run].events(count); }
   async gantt(run) { return this.runs[run].gantt(); }
   async step(run, count, dir) { return this.runs[run].step(count, dir); }
   async resolve(run, kind, value) {

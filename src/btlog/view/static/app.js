@@ -15,6 +15,7 @@ class Pane {
     this.count = meta.events;
     this.state = null;
     this.pending = null;
+    this.target = null;
     this.busy = false;
     this.selected = null;
     this.root = el("div", { class: "pane", "data-run": index }, parent);
@@ -53,10 +54,12 @@ class Pane {
   /** Go to a moment (a count of events applied); requests are coalesced. */
   moveTo(count) {
     count = Math.max(0, Math.min(this.meta.events, Math.round(count)));
+    this.target = count;
     return this.request(() => this.app.source.state(this.index, count));
   }
 
   moveToTime(tNs) {
+    this.target = null;
     return this.request(() => this.app.source.stateAtTime(this.index, tNs));
   }
 
@@ -81,6 +84,7 @@ class Pane {
   async show(state) {
     this.state = state;
     this.count = state.count;
+    if (!this.pending) this.target = null;
     this.graph.update(state);
     this.timeline.setCursor(state.t_ns);
     this.slider.value = state.count;
@@ -91,7 +95,7 @@ class Pane {
     this.panels.showAnswers(state.answers);
     this.panels.showBlackboard(state.blackboard);
     this.panels.showNode(this.selected, state);
-    this.panels.showEvents(await this.app.source.events(this.index, state.count), state.count);
+    this.panels.showEvents(state.events, state.count);
     this.app.writeHash();
     this.root.setAttribute("data-ready", "1");
   }
@@ -101,9 +105,11 @@ class Pane {
     if (this.state) this.panels.showNode(uid, this.state);
   }
 
+  /** One event (or one tick) on from the moment last asked for, shown or not yet. */
   async step(dir, byTick) {
-    if (byTick) return this.moveTo(await this.app.source.step(this.index, this.count, dir));
-    return this.moveTo(this.count + dir);
+    const from = this.target ?? this.count;
+    if (byTick) return this.moveTo(await this.app.source.step(this.index, from, dir));
+    return this.moveTo(from + dir);
   }
 
   async ask(question) {

@@ -74,7 +74,7 @@ class SidePanels {
         text = `${row.scope || "(root)"}.${row.key} = ${showValue(row.value)}  by ${who}`;
       } else text = `inserted ${who}`;
       const line = el("div", { "data-seq": row.seq }, this.eventList,
-        `${String(row.seq).padStart(6)}  ${seconds(row.t_ns).padStart(10)}  t${row.tick}  ${text}`);
+        `${String(row.seq).padStart(6)}  ${seconds(row.t_ns).padStart(10)}  ${row.tick === undefined ? "" : "t" + row.tick}  ${text}`);
       if (row.seq === count - 1) { line.classList.add("now"); now = line; }
       else if (row.seq >= count) line.classList.add("future");
       line.addEventListener("click", () => this.pane.moveTo(row.seq + 1));
