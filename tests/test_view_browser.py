@@ -10,6 +10,7 @@ Skipped only when chromium is not installed (CI installs it with apt).
 from __future__ import annotations
 
 import json
+import re
 from collections.abc import Iterator
 from pathlib import Path
 
@@ -153,6 +154,34 @@ def test_the_keyboard_steps_by_event_and_by_tick(page, served, database) -> None
     at_count(page, after)
     assert page.evaluate("location.hash") == f"#seq={after - 1}"
     assert page.locator(".events .now").inner_text().lstrip().startswith(str(after - 1))
+
+
+def test_collapse_zoom_and_play_at_10x(page, served, database) -> None:
+    page.goto(served.url + "#seq=-1")
+    at_count(page, 0)
+    toggle = page.locator('g.node[data-uid="2"] > g.toggle')
+    toggle.dispatch_event("click")
+    hidden = page.locator("g.node.absent").count()
+    below = len(list(database.run().tree.node(2).walk())) - 1
+    assert hidden == below > 0
+    toggle.dispatch_event("click")
+    assert page.locator("g.node.absent").count() == 0
+    scale = "() => document.querySelector('g.viewport').getAttribute('transform')"
+    before = page.evaluate(scale)
+    page.mouse.move(400, 300)
+    page.mouse.wheel(0, -400)
+    page.wait_for_function(f"before => ({scale})() !== before", arg=before)
+    zoom = [float(x) for x in re.findall(r"scale\(([0-9.]+)\)", page.evaluate(scale) + before)]
+    assert zoom[0] > zoom[1]
+    page.select_option('select[aria-label="speed"]', "10")
+    page.keyboard.press(" ")
+    page.wait_for_timeout(1000)
+    page.keyboard.press(" ")
+    page.wait_for_function("() => !window.btlogViewer.playing && !window.btlogViewer.focused.busy")
+    count = int(page.locator(".pane").get_attribute("data-count"))
+    t_ns = database.run().state_after(count)[1].t_ns
+    assert 4e9 < t_ns < 20e9  # about 1 s of the wall clock at 10x
+    assert shown_statuses(page) == expected_statuses(database, count)
 
 
 def test_dragging_the_timeline_scrubs(page, served, database) -> None:

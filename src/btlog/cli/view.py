@@ -8,16 +8,20 @@ import threading
 import webbrowser
 from argparse import Namespace
 from pathlib import Path
+from typing import TYPE_CHECKING
 
-from btlog.render.terminal import safe
-from btlog.replay.database import RunDatabase, open_runs
-from btlog.view.export import export_page
-from btlog.view.model import RunView, divergence_json
-from btlog.view.server import ViewerApp, serve
+from btlog.render.escape import safe
+
+if TYPE_CHECKING:  # the read model (DuckDB) is imported when a command needs it
+    from btlog.replay.database import RunDatabase
+    from btlog.view.model import RunView
 
 
 def open_views(paths: list[str]) -> tuple[RunDatabase, list[RunView]]:
     """Open the recordings in one read model; one view per recording."""
+    from btlog.replay.database import open_runs
+    from btlog.view.model import RunView
+
     database = open_runs(*paths)
     for info in database.runs:
         for warning in info.warnings:
@@ -31,6 +35,9 @@ def open_views(paths: list[str]) -> tuple[RunDatabase, list[RunView]]:
 
 def write_export(paths: list[str], output: str, report: str | None = None) -> None:
     """Write the self-contained viewer of ``paths`` to ``output``."""
+    from btlog.view.export import export_page
+    from btlog.view.model import divergence_json
+
     database, views = open_views(paths)
     try:
         diff = divergence_json(paths[0], paths[1]) if len(paths) == 2 else None
@@ -41,6 +48,9 @@ def write_export(paths: list[str], output: str, report: str | None = None) -> No
 
 def view(args: Namespace) -> int:
     """``btlog view REC [REC2] [--port P] [--no-browser] [--export FILE]``."""
+    from btlog.view.model import divergence_json
+    from btlog.view.server import ViewerApp, serve
+
     paths = [args.run] + ([args.other] if args.other else [])
     if args.export:
         write_export(paths, args.export)

@@ -46,17 +46,11 @@ def run_data(view: RunView) -> dict[str, Any]:
         columns["tick"].append(entry.tick)
         columns["kind"].append(_KINDS[entry.kind])
         columns["uid"].append(entry.uid)
-        columns["prev"].append(_CODES.get(entry.prev_status, 0))
+        columns["prev"].append(_CODES.get(entry.prev_status or "", 0))
         if entry.kind == "status":
-            columns["st"].append(_CODES[entry.status])
-            projection.on_status(
-                entry.seq,
-                entry.t_ns,
-                entry.tick,
-                entry.uid,
-                Status[entry.prev_status],
-                Status[entry.status],
-            )
+            prev, status = Status[entry.prev_status or "IDLE"], Status[entry.status or "IDLE"]
+            columns["st"].append(int(status))
+            projection.on_status(entry.seq, entry.t_ns, entry.tick, entry.uid or 0, prev, status)
         elif entry.kind == "write":
             columns["st"].append(len(writes))
             kind = "unset" if entry.seq in unset else "set"

@@ -48,6 +48,7 @@ def node_json(node: Node) -> dict[str, Any]:
         "type": node.type,
         "name": node.name,
         "path": node.path,
+        "scope": node.scope,
         "ports": {k: {"value": p.value, "dir": p.direction} for k, p in node.ports.items()},
         "added": node.added_seq,
     }

@@ -170,6 +170,12 @@ class App {
     for (const s of ["1", "10"]) el("option", { value: s }, this.speed, `${s}\u00d7`);
     el("span", { class: "hint" }, bar,
       "\u2190/\u2192 event \u00b7 Shift+\u2190/\u2192 tick \u00b7 space play \u00b7 drag the timeline to scrub");
+    // The keyboard belongs to the moment: a clicked button or the speed list lets go of the
+    // focus, so that space and the arrows do not press or change them as well.
+    for (const control of [back, this.playButton, next]) {
+      control.addEventListener("click", () => control.blur());
+    }
+    this.speed.addEventListener("change", () => this.speed.blur());
     back.addEventListener("click", () => this.focused.step(-1, false));
     next.addEventListener("click", () => this.focused.step(1, false));
     this.playButton.addEventListener("click", () => this.togglePlay());

@@ -117,7 +117,9 @@ class SidePanels {
       el("td", {}, tr, `${port} (${p.dir})`);
       el("td", {}, tr, p.value);
       const key = /^\s*\{(.*)\}\s*$/.exec(p.value);
-      const found = key ? state.blackboard.find((b) => b.key === key[1].trim()) : null;
+      const name = key ? key[1].trim() : null;
+      const found = key ? (state.blackboard.find((b) => b.key === name && b.scope === n.scope) ||
+        state.blackboard.find((b) => b.key === name)) : null;
       el("code", {}, el("td", {}, tr), key ? (found ? showValue(found.value) : "(unset)") : "");
     }
   }
