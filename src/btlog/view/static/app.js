@@ -32,6 +32,8 @@ class Pane {
     const tools = el("div", { class: "graphtools" }, graphBox);
     el("button", { type: "button", title: "fit the tree" }, tools, "fit")
       .addEventListener("click", () => this.graph.fit());
+    el("button", { type: "button", title: "expand every subtree" }, tools, "expand all")
+      .addEventListener("click", () => this.graph.expandAll());
     el("button", { type: "button", title: "show the current node" }, tools, "current")
       .addEventListener("click", () => this.state?.current.forEach((u) => this.graph.reveal(u)));
     const legend = el("div", { class: "legend" }, graphBox);
@@ -145,11 +147,15 @@ class App {
       el("pre", {}, details, info.report);
     }
     if (info.diff) this.buildDiff(info.diff);
+    // The moments are asked for first: the answers arrive while the panes are drawn.
+    const counts = this.hashCounts(location.hash, info.runs);
+    const states = counts.then((c) => c.map((count, i) => this.source.state(i, count)));
     const panes = el("div", { class: "panes" + (info.runs.length > 1 ? " two" : "") }, this.root);
     info.runs.forEach((meta, i) => this.panes.push(new Pane(this, i, meta, panes)));
     this.focus(this.panes[0]);
     if (info.diff) this.markDivergent(info.diff);
-    await this.openHash(location.hash);
+    const first = await states;
+    await Promise.all(this.panes.map((pane, i) => pane.request(() => first[i])));
     this.panes.forEach((p) => p.graph.home(p.state?.current[0]));
     this.panes.forEach((p) => p.loadGantt());
     window.addEventListener("hashchange", () => {
@@ -222,27 +228,33 @@ class App {
     pane.root.classList.add("focused");
   }
 
-  /** Open the moments a URL fragment names (the end of each run when it names none). */
-  async openHash(hash) {
+  /** The counts a URL fragment names, one per run (a run's end when it names none). */
+  hashCounts(hash, runs) {
     const parts = new Map();
     for (const piece of hash.replace(/^#/, "").split("&")) {
       const at = piece.indexOf("=");
       if (at > 0) parts.set(decodeURIComponent(piece.slice(0, at)), decodeURIComponent(piece.slice(at + 1)));
     }
-    await Promise.all(this.panes.map(async (pane) => {
-      let count = pane.meta.events;
+    return Promise.all(runs.map(async (meta, index) => {
+      const prefix = index === 0 ? "" : "b.";
       for (const kind of ["seq", "tick", "t"]) {
-        const value = parts.get(pane.prefix + kind);
+        const value = parts.get(prefix + kind);
         if (value === undefined) continue;
         try {
-          count = await this.source.resolve(pane.index, kind, value);
+          return await this.source.resolve(index, kind, value);
         } catch (error) {
-          this.toast(`#${pane.prefix}${kind}=${value}: ${error.message || error}`);
+          this.toast(`#${prefix}${kind}=${value}: ${error.message || error}`);
         }
         break;
       }
-      await pane.moveTo(count);
+      return meta.events;
     }));
+  }
+
+  /** Open the moments a URL fragment names. */
+  async openHash(hash) {
+    const counts = await this.hashCounts(hash, this.info.runs);
+    await Promise.all(this.panes.map((pane, i) => pane.moveTo(counts[i])));
   }
 
   writeHash() {

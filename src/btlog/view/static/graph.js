@@ -6,6 +6,9 @@
 
 const SVG_NS = "http://www.w3.org/2000/svg";
 const BOX_W = 150, BOX_H = 40, GAP_X = 14, GAP_Y = 46;
+/** Trees larger than this open with subtrees below OPEN_DEPTH collapsed (the path to the
+ * current node is opened): readable at once, and far fewer elements to render. */
+const LARGE_TREE = 300, OPEN_DEPTH = 2;
 
 function svg(tag, attrs = {}, parent = null) {
   const el = document.createElementNS(SVG_NS, tag);
@@ -29,6 +32,7 @@ class TreeGraph {
     }
     this.root = this.nodes.get(rootUid);
     this.collapsed = new Set();
+    if (this.nodes.size > LARGE_TREE) this.collapseBelow(OPEN_DEPTH);
     this.present = new Set(this.nodes.keys());
     this.selected = null;
     this.svg = svg("svg", { "aria-label": "behavior tree" }, box);
@@ -106,6 +110,19 @@ class TreeGraph {
     this.width = slot * (BOX_W + GAP_X);
   }
 
+  collapseBelow(depth) {
+    const walk = (n, d) => {
+      if (d >= depth && n.children.length) this.collapsed.add(n.uid);
+      for (const c of n.children) walk(c, d + 1);
+    };
+    walk(this.root, 0);
+  }
+
+  expandAll() {
+    this.collapsed.clear();
+    this.layout();
+  }
+
   toggle(uid) {
     if (this.collapsed.has(uid)) this.collapsed.delete(uid); else this.collapsed.add(uid);
     this.layout();
@@ -141,6 +158,7 @@ class TreeGraph {
   /** Expand every ancestor of `uid` and bring it into view. */
   /** Readable at once: the whole tree when it fits at a legible size, else zoomed on `uid`. */
   home(uid) {
+    if (uid !== undefined) this.open(uid);
     this.fit();
     if (this.zoom.k >= 0.6 || uid === undefined) return;
     const target = this.nodes.get(uid);
@@ -150,7 +168,8 @@ class TreeGraph {
     this.apply();
   }
 
-  reveal(uid) {
+  /** Expand every ancestor of `uid`. */
+  open(uid) {
     let n = this.nodes.get(uid);
     let changed = false;
     while (n && n.parent !== null) {
@@ -158,6 +177,10 @@ class TreeGraph {
       if (n && this.collapsed.delete(n.uid)) changed = true;
     }
     if (changed) this.layout();
+  }
+
+  reveal(uid) {
+    this.open(uid);
     const target = this.nodes.get(uid);
     if (!target || !target.visible) return;
     const w = this.box.clientWidth, h = this.box.clientHeight, k = this.zoom.k;
