@@ -66,6 +66,8 @@ class ViewerApp:
 
     @staticmethod
     def _count(view: RunView, query: dict[str, str]) -> int:
+        if "at" in query:
+            return view.resolve(query["at"])
         if "t_ns" in query:
             return view.count_at_time(int(query["t_ns"]))
         return view.clamp(int(query.get("count", "0")))

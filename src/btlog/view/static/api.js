@@ -35,6 +35,11 @@ function questionIntent(patterns, question) {
   return null;
 }
 
+/** A deep link's moment in the form `--at` takes. */
+function momentText(kind, value) {
+  return kind === "seq" ? `seq:${value}` : kind === "tick" ? `tick:${value}` : value;
+}
+
 class ServerSource {
   /** The page served by `btlog view`: every question goes to the server. */
   async init() {
@@ -54,8 +59,11 @@ class ServerSource {
     return (await this.get(`/api/run/${run}/step?count=${count}&dir=${dir}`)).count;
   }
   async resolve(run, kind, value) {
-    const at = kind === "seq" ? `seq:${value}` : kind === "tick" ? `tick:${value}` : value;
-    return (await this.get(`/api/run/${run}/resolve?at=${encodeURIComponent(at)}`)).count;
+    const at = encodeURIComponent(momentText(kind, value));
+    return (await this.get(`/api/run/${run}/resolve?at=${at}`)).count;
+  }
+  stateAt(run, kind, value) {
+    return this.get(`/api/run/${run}/state?at=${encodeURIComponent(momentText(kind, value))}`);
   }
   ask(run, count, question) {
     return this.get(`/api/run/${run}/ask?count=${count}&q=${encodeURIComponent(question)}`);
@@ -188,6 +196,9 @@ class EmbeddedSource {
     const t = parseTime(value);
     if (t === null) throw new Error(`not a time: ${value}`);
     return t < 0 ? upperBound(r.t, r.meta.duration_ns + t) : upperBound(r.t, t);
+  }
+  async stateAt(run, kind, value) {
+    return this.runs[run].state(await this.resolve(run, kind, value));
   }
   async ask(run, count, question) {
     const intent = questionIntent(this.info.patterns, question);

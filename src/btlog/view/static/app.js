@@ -148,14 +148,13 @@ class App {
     }
     if (info.diff) this.buildDiff(info.diff);
     // The moments are asked for first: the answers arrive while the panes are drawn.
-    const counts = this.hashCounts(location.hash, info.runs);
-    const states = counts.then((c) => c.map((count, i) => this.source.state(i, count)));
+    const moments = this.hashMoments(location.hash, info.runs);
+    const states = moments.map((moment, i) => this.momentState(i, moment));
     const panes = el("div", { class: "panes" + (info.runs.length > 1 ? " two" : "") }, this.root);
     info.runs.forEach((meta, i) => this.panes.push(new Pane(this, i, meta, panes)));
     this.focus(this.panes[0]);
     if (info.diff) this.markDivergent(info.diff);
-    const first = await states;
-    await Promise.all(this.panes.map((pane, i) => pane.request(() => first[i])));
+    await Promise.all(this.panes.map((pane, i) => pane.request(() => states[i])));
     this.panes.forEach((p) => p.graph.home(p.state?.current[0]));
     this.panes.forEach((p) => p.loadGantt());
     window.addEventListener("hashchange", () => {
@@ -228,33 +227,34 @@ class App {
     pane.root.classList.add("focused");
   }
 
-  /** The counts a URL fragment names, one per run (a run's end when it names none). */
-  hashCounts(hash, runs) {
+  /** The moment a URL fragment names for each run: [kind, value], or null (its end). */
+  hashMoments(hash, runs) {
     const parts = new Map();
     for (const piece of hash.replace(/^#/, "").split("&")) {
       const at = piece.indexOf("=");
       if (at > 0) parts.set(decodeURIComponent(piece.slice(0, at)), decodeURIComponent(piece.slice(at + 1)));
     }
-    return Promise.all(runs.map(async (meta, index) => {
+    return runs.map((meta, index) => {
       const prefix = index === 0 ? "" : "b.";
-      for (const kind of ["seq", "tick", "t"]) {
-        const value = parts.get(prefix + kind);
-        if (value === undefined) continue;
-        try {
-          return await this.source.resolve(index, kind, value);
-        } catch (error) {
-          this.toast(`#${prefix}${kind}=${value}: ${error.message || error}`);
-        }
-        break;
-      }
-      return meta.events;
-    }));
+      const kind = ["seq", "tick", "t"].find((k) => parts.has(prefix + k));
+      return kind === undefined ? null : [kind, parts.get(prefix + kind)];
+    });
+  }
+
+  /** The state at a run's deep-linked moment (its end, with a message, when unknown). */
+  momentState(index, moment) {
+    const end = () => this.source.state(index, this.info.runs[index].events);
+    if (moment === null) return end();
+    return this.source.stateAt(index, moment[0], moment[1]).catch((error) => {
+      this.toast(`#${index ? "b." : ""}${moment[0]}=${moment[1]}: ${error.message || error}`);
+      return end();
+    });
   }
 
   /** Open the moments a URL fragment names. */
   async openHash(hash) {
-    const counts = await this.hashCounts(hash, this.info.runs);
-    await Promise.all(this.panes.map((pane, i) => pane.moveTo(counts[i])));
+    const moments = this.hashMoments(hash, this.info.runs);
+    await Promise.all(this.panes.map((pane, i) => pane.request(() => this.momentState(i, moments[i]))));
   }
 
   writeHash() {

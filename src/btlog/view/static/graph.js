@@ -39,9 +39,11 @@ class TreeGraph {
     this.view = svg("g", { class: "viewport" }, this.svg);
     this.edgeLayer = svg("g", {}, this.view);
     this.nodeLayer = svg("g", {}, this.view);
+    // Elements are made when a node is first shown (a collapsed subtree costs nothing).
     this.elements = new Map();
     this.edges = new Map();
-    for (const n of this.nodes.values()) this.makeNode(n);
+    this.marks = new Map();
+    this.state = { status: {}, current: [] };
     this.zoom = { x: 20, y: 20, k: 1 };
     this.installPanZoom();
     this.layout();
@@ -49,8 +51,11 @@ class TreeGraph {
   }
 
   makeNode(n) {
-    const g = svg("g", { class: "node", "data-uid": n.uid, "data-status": "IDLE",
-      "data-kind": n.kind }, this.nodeLayer);
+    const g = svg("g", { class: "node", "data-uid": n.uid,
+      "data-status": this.state.status[n.uid] || "IDLE", "data-kind": n.kind }, this.nodeLayer);
+    if (this.state.current.includes(n.uid)) g.classList.add("current");
+    for (const cls of this.marks.get(n.uid) || []) g.classList.add(cls);
+    if (this.selected === n.uid) g.classList.add("selected");
     const title = svg("title", {}, g);
     title.textContent = `${n.name || n.type} \u2014 ${n.type} (${n.kind}) #${n.uid}\n${n.path}`;
     svg("rect", { class: "box", width: BOX_W, height: BOX_H }, g);
@@ -93,7 +98,9 @@ class TreeGraph {
     for (const n of this.nodes.values()) n.visible = false;
     place(this.root, 0);
     for (const n of this.nodes.values()) {
+      if (n.visible && !this.elements.has(n.uid)) this.makeNode(n);
       const g = this.elements.get(n.uid);
+      if (!g) continue;
       g.classList.toggle("absent", !n.visible);
       if (n.visible) g.setAttribute("transform", `translate(${n.x},${n.y})`);
       if (n.toggleText) n.toggleText.textContent = this.collapsed.has(n.uid) ? "+" : "\u2212";
@@ -135,6 +142,7 @@ class TreeGraph {
     if (!changed) for (const uid of present) if (!this.present.has(uid)) { changed = true; break; }
     this.present = present;
     const current = new Set(state.current);
+    this.state = state;
     for (const [uid, g] of this.elements) {
       const status = state.status[uid] || "IDLE";
       if (g.getAttribute("data-status") !== status) g.setAttribute("data-status", status);
@@ -147,12 +155,16 @@ class TreeGraph {
   select(uid) {
     if (this.selected !== null) this.elements.get(this.selected)?.classList.remove("selected");
     this.selected = uid;
-    if (uid !== null) this.elements.get(uid).classList.add("selected");
+    if (uid !== null) this.elements.get(uid)?.classList.add("selected");
     this.onSelect(uid);
   }
 
   mark(uids, cls) {
-    for (const uid of uids) this.elements.get(uid)?.classList.add(cls);
+    for (const uid of uids) {
+      if (!this.marks.has(uid)) this.marks.set(uid, new Set());
+      this.marks.get(uid).add(cls);
+      this.elements.get(uid)?.classList.add(cls);
+    }
   }
 
   /** Expand every ancestor of `uid` and bring it into view. */
@@ -160,8 +172,8 @@ class TreeGraph {
   home(uid) {
     if (uid !== undefined) this.open(uid);
     this.fit();
-    if (this.zoom.k >= 0.6 || uid === undefined) return;
-    const target = this.nodes.get(uid);
+    if (this.zoom.k >= 0.6) return;
+    const target = this.nodes.get(uid === undefined ? this.root.uid : uid);
     if (!target || !target.visible) { this.zoom.k = 0.8; this.apply(); return; }
     const w = this.box.clientWidth, h = this.box.clientHeight, k = 0.8;
     this.zoom = { k, x: w / 2 - (target.x + BOX_W / 2) * k, y: Math.min(20, h / 2 - target.y * k) };

@@ -19,82 +19,104 @@ function formatSeconds(ns) {
 }
 
 class Timeline {
-  /** A Gantt of `nodes` (execution nodes, tree order) over `durationNs`. */
+  /** A Gantt of `nodes` (execution nodes, tree order) over `durationNs`. Only the rows
+   * in view are drawn (the box scrolls over a spacer), so a 1,000-node tree costs what
+   * a small one does. */
   constructor(box, nodes, durationNs, onScrub) {
     this.box = box;
     this.rows = nodes.filter((n) => n.kind === "action" || n.kind === "condition");
     this.rowOf = new Map(this.rows.map((n, i) => [n.uid, i]));
     this.duration = Math.max(1, durationNs);
     this.onScrub = onScrub;
+    this.view = document.createElement("div");
+    this.view.className = "timelineview";
+    box.appendChild(this.view);
     this.canvas = document.createElement("canvas");
     this.canvas.setAttribute("aria-label", "timeline");
-    box.appendChild(this.canvas);
+    this.view.appendChild(this.canvas);
     this.cursorLine = document.createElement("div");
     this.cursorLine.className = "cursor";
-    box.appendChild(this.cursorLine);
+    this.view.appendChild(this.cursorLine);
+    this.spacer = document.createElement("div");
+    box.appendChild(this.spacer);
     this.cursor = 0;
     this.segments = null;
+    this.byRow = [];
     this.installScrub();
+    box.addEventListener("scroll", () => this.draw(), { passive: true });
     new ResizeObserver(() => this.draw()).observe(box);
   }
 
-  setSegments(segments) { this.segments = segments; this.draw(); }
+  setSegments(segments) {
+    this.segments = segments;
+    this.byRow = this.rows.map(() => []);
+    for (let i = 0; i < segments.uid.length; i++) {
+      const row = this.rowOf.get(segments.uid[i]);
+      if (row !== undefined) this.byRow[row].push(i);
+    }
+    this.draw();
+  }
 
   setCursor(tNs) { this.cursor = tNs; this.drawCursor(); }
 
-  xOf(tNs) {
-    const w = this.canvas.width / (window.devicePixelRatio || 1) - LABEL_W - 10;
-    return LABEL_W + (tNs / this.duration) * w;
-  }
+  plotWidth() { return this.box.clientWidth - LABEL_W - 10; }
+
+  xOf(tNs) { return LABEL_W + (tNs / this.duration) * this.plotWidth(); }
 
   tOf(x) {
-    const w = this.canvas.width / (window.devicePixelRatio || 1) - LABEL_W - 10;
-    return Math.max(0, Math.min(this.duration, ((x - LABEL_W) / w) * this.duration));
+    return Math.max(0, Math.min(this.duration, ((x - LABEL_W) / this.plotWidth()) * this.duration));
   }
 
   draw() {
     const ratio = window.devicePixelRatio || 1;
-    const width = this.box.clientWidth, height = AXIS_H + this.rows.length * ROW_H + 4;
-    if (!width) return;
-    this.canvas.width = width * ratio; this.canvas.height = height * ratio;
-    this.canvas.style.width = width + "px"; this.canvas.style.height = height + "px";
+    const width = this.box.clientWidth, height = this.box.clientHeight;
+    if (!width || !height) return;
+    const total = AXIS_H + this.rows.length * ROW_H + 4;
+    this.spacer.style.height = `${Math.max(0, total - height)}px`;
+    if (this.canvas.width !== width * ratio || this.canvas.height !== height * ratio) {
+      this.canvas.width = width * ratio; this.canvas.height = height * ratio;
+      this.canvas.style.width = width + "px"; this.canvas.style.height = height + "px";
+    }
     const ctx = this.canvas.getContext("2d");
     ctx.setTransform(ratio, 0, 0, ratio, 0, 0);
     ctx.fillStyle = "#fff"; ctx.fillRect(0, 0, width, height);
     ctx.font = "10px system-ui, sans-serif"; ctx.textBaseline = "middle";
+    const top = this.box.scrollTop;
+    const first = Math.max(0, Math.floor(top / ROW_H));
+    const last = Math.min(this.rows.length, Math.ceil((top + height - AXIS_H) / ROW_H) + 1);
+    for (let row = first; row < last; row++) {
+      const y = AXIS_H + row * ROW_H - top;
+      if (row % 2) { ctx.fillStyle = "#fafafa"; ctx.fillRect(0, y, width, ROW_H); }
+      const n = this.rows[row];
+      ctx.fillStyle = "#444";
+      ctx.fillText(clip(n.name || n.type, 26), 4, y + ROW_H / 2);
+      if (this.segments) this.drawRow(ctx, row, y);
+    }
+    ctx.fillStyle = "#fff"; ctx.fillRect(0, 0, width, AXIS_H);
     const step = niceStep(this.duration);
-    ctx.strokeStyle = "#eee"; ctx.fillStyle = "#777";
+    ctx.strokeStyle = "#e6e6e6"; ctx.fillStyle = "#777";
     for (let t = 0; t <= this.duration; t += step) {
       const x = Math.round(this.xOf(t)) + 0.5;
       ctx.beginPath(); ctx.moveTo(x, AXIS_H - 4); ctx.lineTo(x, height); ctx.stroke();
       ctx.fillText(formatSeconds(t), x + 2, 8);
     }
-    this.rows.forEach((n, i) => {
-      const y = AXIS_H + i * ROW_H;
-      if (i % 2) { ctx.fillStyle = "#fafafa"; ctx.fillRect(0, y, width, ROW_H); }
-      ctx.fillStyle = "#444";
-      ctx.fillText(clip(n.name || n.type, 26), 4, y + ROW_H / 2);
-    });
-    if (this.segments) {
-      const s = this.segments;
-      for (let i = 0; i < s.uid.length; i++) {
-        const row = this.rowOf.get(s.uid[i]);
-        if (row === undefined) continue;
-        const status = s.status[i];
-        const x0 = this.xOf(s.start[i]), x1 = this.xOf(s.end[i]);
-        const y = AXIS_H + row * ROW_H;
-        ctx.fillStyle = STATUS_COLOURS[status] || "#999";
-        if (status === "RUNNING") ctx.fillRect(x0, y + 2, Math.max(1, x1 - x0), ROW_H - 4);
-        else ctx.fillRect(x0 - (status === "FAILURE" ? 1 : 0), y + 1,
-          status === "FAILURE" ? 3 : Math.max(1, Math.min(2, x1 - x0)), ROW_H - 2);
-      }
-    }
     this.drawCursor();
+  }
+
+  drawRow(ctx, row, y) {
+    const s = this.segments;
+    for (const i of this.byRow[row]) {
+      const status = s.status[i];
+      const x0 = this.xOf(s.start[i]), x1 = this.xOf(s.end[i]);
+      ctx.fillStyle = STATUS_COLOURS[status] || "#999";
+      if (status === "RUNNING") ctx.fillRect(x0, y + 2, Math.max(1, x1 - x0), ROW_H - 4);
+      else if (status === "FAILURE") ctx.fillRect(x0 - 1, y + 1, 3, ROW_H - 2);
+      else ctx.fillRect(x0, y + 1, Math.max(1, Math.min(2, x1 - x0)), ROW_H - 2);
+    }
   }
 
   drawCursor() {
     this.cursorLine.style.left = `${Math.round(this.xOf(this.cursor)) - 1}px`;
-    this.cursorLine.style.height = this.canvas.style.height;
   }
 
   installScrub() {
