@@ -184,6 +184,23 @@ def test_collapse_zoom_and_play_at_10x(page, served, database) -> None:
     assert shown_statuses(page) == expected_statuses(database, count)
 
 
+def test_the_timeline_zooms_and_its_labels_select(page, served, database) -> None:
+    page.goto(served.url + "#t=10.4s")
+    at_count(page, database.run().resolve("10.4s").count)
+    box = page.locator(".timelinebox canvas").bounding_box()
+    span = "() => { const t = window.btlogViewer.panes[0].timeline; return t.hi - t.lo; }"
+    whole = page.evaluate(span)
+    page.mouse.move(box["x"] + box["width"] / 2, box["y"] + 40)
+    page.mouse.wheel(0, -600)
+    page.wait_for_function(f"whole => ({span})() < whole / 2", arg=whole)
+    page.wait_for_function("() => window.btlogViewer.panes[0].timeline.segments !== null")
+    page.mouse.click(box["x"] + 20, box["y"] + 20 + 11 * 7 + 5)  # the 8th row's label
+    (uid,) = [n.uid for n in database.run().tree if n.name == "look at chuck"]
+    assert page.locator("g.node.selected").get_attribute("data-uid") == str(uid)
+    assert "look at chuck" in page.locator(".selection").inner_text()
+    screenshot(page, "view-timeline-zoomed.png")
+
+
 def test_dragging_the_timeline_scrubs(page, served, database) -> None:
     page.goto(served.url + "#seq=-1")
     at_count(page, 0)

@@ -194,9 +194,11 @@ class RunView:
         _tree, last = self.run.state_after(count)
         return extent.count_after_tick(last.tick - 1)
 
-    def gantt(self) -> dict[str, Any]:
-        """The execution nodes' non-IDLE intervals, columnar: uid, status, start, end."""
+    def gantt(self, lo: int = 0, hi: int | None = None) -> dict[str, Any]:
+        """The execution nodes' non-IDLE intervals that overlap the time window [lo, hi]
+        (the whole run by default), columnar: uid, status, start, end."""
         duration = max(1, self.run.extent.duration_ns)
+        hi = duration if hi is None else max(lo + 1, hi)
         _cols, rows = self.database.sql(
             """WITH t AS (
                  SELECT uid, t_ns, status,
@@ -205,10 +207,16 @@ class RunView:
                    SELECT uid FROM nodes WHERE run_id = $run
                    AND kind IN ('action', 'condition')))
                SELECT uid, status::VARCHAR, min(t_ns), max(coalesce(t_end, $dur))
-               FROM t WHERE status <> 'IDLE'
-               GROUP BY uid, status, floor(t_ns * $buckets / $dur)
+               FROM t WHERE status <> 'IDLE' AND t_ns <= $hi AND coalesce(t_end, $dur) >= $lo
+               GROUP BY uid, status, floor((t_ns - $lo) * $buckets / ($hi - $lo))
                ORDER BY 1, 3""",
-            {"run": self.run.run_id, "dur": duration, "buckets": GANTT_BUCKETS},
+            {
+                "run": self.run.run_id,
+                "dur": duration,
+                "buckets": GANTT_BUCKETS,
+                "lo": lo,
+                "hi": hi,
+            },
         )
         return {
             "uid": [r[0] for r in rows],

@@ -54,7 +54,8 @@ class ViewerApp:
             if what == "resolve":
                 return {"count": view.resolve(query.get("at", "end"))}
             if what == "gantt":
-                return view.gantt()
+                hi = query.get("hi")
+                return view.gantt(int(query.get("lo", "0")), None if hi is None else int(hi))
             count = self._count(view, query)
             if what == "state":
                 return view.state(count)

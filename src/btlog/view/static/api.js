@@ -54,7 +54,10 @@ class ServerSource {
   }
   state(run, count) { return this.get(`/api/run/${run}/state?count=${count}`); }
   stateAtTime(run, tNs) { return this.get(`/api/run/${run}/state?t_ns=${Math.round(tNs)}`); }
-  gantt(run) { return this.get(`/api/run/${run}/gantt`); }
+  gantt(run, lo, hi) {
+    const window = lo === undefined ? "" : `?lo=${Math.floor(lo)}&hi=${Math.ceil(hi)}`;
+    return this.get(`/api/run/${run}/gantt${window}`);
+  }
   async step(run, count, dir) {
     return (await this.get(`/api/run/${run}/step?count=${count}&dir=${dir}`)).count;
   }
@@ -187,7 +190,11 @@ class EmbeddedSource {
   async stateAtTime(run, tNs) {
     return this.runs[run].state(upperBound(this.runs[run].t, tNs));
   }
-  async gantt(run) { return this.runs[run].gantt(); }
+  async gantt(run, lo, hi) {
+    if (this.segments === undefined) this.segments = this.runs.map(() => null);
+    if (!this.segments[run]) this.segments[run] = this.runs[run].gantt();
+    return this.segments[run];   // every interval, exact: the timeline clips to its window
+  }
   async step(run, count, dir) { return this.runs[run].step(count, dir); }
   async resolve(run, kind, value) {
     const r = this.runs[run];

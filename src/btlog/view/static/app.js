@@ -45,12 +45,15 @@ class Pane {
     this.panels = new SidePanels(el("div", { class: "side" }, body), this);
     const timelineBox = el("div", { class: "timelinebox" }, this.root);
     this.timeline = new Timeline(timelineBox, meta.nodes, meta.duration_ns,
-      (t) => this.moveToTime(t));
+      (t) => this.moveToTime(t), (lo, hi) => this.loadGantt(lo, hi),
+      (uid) => { this.graph.reveal(uid); this.graph.select(uid); });
     this.root.addEventListener("pointerdown", () => app.focus(this));
   }
 
-  async loadGantt() {
-    this.timeline.setSegments(await this.app.source.gantt(this.index));
+  /** The Gantt of the timeline's window (the whole run at first). */
+  async loadGantt(lo, hi) {
+    const segments = await this.app.source.gantt(this.index, lo, hi);
+    this.timeline.setSegments(segments, lo, hi);
   }
 
   /** Go to a moment (a count of events applied); requests are coalesced. */
@@ -174,7 +177,8 @@ class App {
     this.speed = el("select", { "aria-label": "speed" }, bar);
     for (const s of ["1", "10"]) el("option", { value: s }, this.speed, `${s}\u00d7`);
     el("span", { class: "hint" }, bar,
-      "\u2190/\u2192 event \u00b7 Shift+\u2190/\u2192 tick \u00b7 space play \u00b7 drag the timeline to scrub");
+      "\u2190/\u2192 event \u00b7 Shift+\u2190/\u2192 tick \u00b7 space play \u00b7 drag the timeline to " +
+      "scrub, wheel on it to zoom, click a row's name to find the node");
     // The keyboard belongs to the moment: a clicked button or the speed list lets go of the
     // focus, so that space and the arrows do not press or change them as well.
     for (const control of [back, this.playButton, next]) {

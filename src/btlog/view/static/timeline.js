@@ -22,12 +22,16 @@ class Timeline {
   /** A Gantt of `nodes` (execution nodes, tree order) over `durationNs`. Only the rows
    * in view are drawn (the box scrolls over a spacer), so a 1,000-node tree costs what
    * a small one does. */
-  constructor(box, nodes, durationNs, onScrub) {
+  constructor(box, nodes, durationNs, onScrub, onWindow, onRow) {
     this.box = box;
     this.rows = nodes.filter((n) => n.kind === "action" || n.kind === "condition");
     this.rowOf = new Map(this.rows.map((n, i) => [n.uid, i]));
     this.duration = Math.max(1, durationNs);
     this.onScrub = onScrub;
+    this.onWindow = onWindow;
+    this.onRow = onRow;
+    this.lo = 0;
+    this.hi = this.duration;
     this.view = document.createElement("div");
     this.view.className = "timelineview";
     box.appendChild(this.view);
@@ -47,7 +51,10 @@ class Timeline {
     new ResizeObserver(() => this.draw()).observe(box);
   }
 
-  setSegments(segments) {
+  /** Intervals to draw; `lo`..`hi` is the window they were asked for (ignored when the
+   * window has moved on since). */
+  setSegments(segments, lo, hi) {
+    if (lo !== undefined && (lo !== this.lo || hi !== this.hi)) return;
     this.segments = segments;
     this.byRow = this.rows.map(() => []);
     for (let i = 0; i < segments.uid.length; i++) {
@@ -61,10 +68,29 @@ class Timeline {
 
   plotWidth() { return this.box.clientWidth - LABEL_W - 10; }
 
-  xOf(tNs) { return LABEL_W + (tNs / this.duration) * this.plotWidth(); }
+  xOf(tNs) { return LABEL_W + ((tNs - this.lo) / (this.hi - this.lo)) * this.plotWidth(); }
 
   tOf(x) {
-    return Math.max(0, Math.min(this.duration, ((x - LABEL_W) / this.plotWidth()) * this.duration));
+    const t = this.lo + ((x - LABEL_W) / this.plotWidth()) * (this.hi - this.lo);
+    return Math.max(this.lo, Math.min(this.hi, t));
+  }
+
+  /** Zoom the time axis by `factor` around time `t` (wheel); the whole run at most. */
+  zoom(factor, t) {
+    const span = Math.min(this.duration, Math.max(1e6, (this.hi - this.lo) * factor));
+    let lo = t - ((t - this.lo) / (this.hi - this.lo)) * span;
+    lo = Math.max(0, Math.min(this.duration - span, lo));
+    this.setWindow(lo, lo + span);
+  }
+
+  setWindow(lo, hi) {
+    if (lo === this.lo && hi === this.hi) return;
+    this.lo = lo; this.hi = hi;
+    this.draw();
+    clearTimeout(this.reload);
+    const whole = lo <= 0 && hi >= this.duration;
+    this.reload = setTimeout(() => this.onWindow(whole ? undefined : lo, whole ? undefined : hi),
+      150);
   }
 
   draw() {
@@ -93,9 +119,9 @@ class Timeline {
       if (this.segments) this.drawRow(ctx, row, y);
     }
     ctx.fillStyle = "#fff"; ctx.fillRect(0, 0, width, AXIS_H);
-    const step = niceStep(this.duration);
+    const step = niceStep(this.hi - this.lo);
     ctx.strokeStyle = "#e6e6e6"; ctx.fillStyle = "#777";
-    for (let t = 0; t <= this.duration; t += step) {
+    for (let t = Math.ceil(this.lo / step) * step; t <= this.hi; t += step) {
       const x = Math.round(this.xOf(t)) + 0.5;
       ctx.beginPath(); ctx.moveTo(x, AXIS_H - 4); ctx.lineTo(x, height); ctx.stroke();
       ctx.fillText(formatSeconds(t), x + 2, 8);
@@ -105,9 +131,11 @@ class Timeline {
 
   drawRow(ctx, row, y) {
     const s = this.segments;
+    const right = LABEL_W + this.plotWidth();
     for (const i of this.byRow[row]) {
+      if (s.end[i] < this.lo || s.start[i] > this.hi) continue;
       const status = s.status[i];
-      const x0 = this.xOf(s.start[i]), x1 = this.xOf(s.end[i]);
+      const x0 = Math.max(LABEL_W, this.xOf(s.start[i])), x1 = Math.min(right, this.xOf(s.end[i]));
       ctx.fillStyle = STATUS_COLOURS[status] || "#999";
       if (status === "RUNNING") ctx.fillRect(x0, y + 2, Math.max(1, x1 - x0), ROW_H - 4);
       else if (status === "FAILURE") ctx.fillRect(x0 - 1, y + 1, 3, ROW_H - 2);
@@ -116,21 +144,50 @@ class Timeline {
   }
 
   drawCursor() {
+    const inside = this.cursor >= this.lo && this.cursor <= this.hi;
+    if (!inside && !this.dragging) {   // follow the moment when it leaves the window
+      const span = this.hi - this.lo;
+      const lo = Math.max(0, Math.min(this.duration - span, this.cursor - span / 2));
+      this.setWindow(lo, lo + span);
+      return;
+    }
+    this.cursorLine.style.display = inside ? "" : "none";
     this.cursorLine.style.left = `${Math.round(this.xOf(this.cursor)) - 1}px`;
   }
 
+  /** Drag to scrub; wheel to zoom the time axis (Shift+wheel or a sideways wheel pans);
+   * a click on a row's label selects that node in the tree. */
   installScrub() {
-    let dragging = false;
+    this.dragging = false;
     const at = (e) => {
       const r = this.canvas.getBoundingClientRect();
       return this.tOf(e.clientX - r.left);
     };
     this.canvas.addEventListener("pointerdown", (e) => {
-      dragging = true;
+      const r = this.canvas.getBoundingClientRect();
+      if (e.clientX - r.left < LABEL_W) {
+        const row = Math.floor((e.clientY - r.top - AXIS_H + this.box.scrollTop) / ROW_H);
+        if (e.clientY - r.top > AXIS_H && this.rows[row]) this.onRow(this.rows[row].uid);
+        return;
+      }
+      this.dragging = true;
       this.canvas.setPointerCapture(e.pointerId);
       this.onScrub(at(e));
     });
-    this.canvas.addEventListener("pointermove", (e) => { if (dragging) this.onScrub(at(e)); });
-    this.canvas.addEventListener("pointerup", () => { dragging = false; });
+    this.canvas.addEventListener("pointermove", (e) => { if (this.dragging) this.onScrub(at(e)); });
+    this.canvas.addEventListener("pointerup", () => { this.dragging = false; });
+    this.canvas.addEventListener("wheel", (e) => {
+      const sideways = e.shiftKey ? e.deltaY : e.deltaX;
+      if (Math.abs(sideways) > Math.abs(e.shiftKey ? 0 : e.deltaY)) {
+        e.preventDefault();
+        const span = this.hi - this.lo;
+        const lo = Math.max(0, Math.min(this.duration - span, this.lo + (sideways / 500) * span));
+        this.setWindow(lo, lo + span);
+      } else if (e.ctrlKey || e.altKey || !e.shiftKey) {
+        if (e.clientX - this.canvas.getBoundingClientRect().left < LABEL_W) return; // scroll rows
+        e.preventDefault();
+        this.zoom(Math.exp(e.deltaY * 0.002), at(e));
+      }
+    }, { passive: false });
   }
 }
