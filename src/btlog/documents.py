@@ -93,7 +93,7 @@ def read(path: str | os.PathLike[str], what: str) -> tuple[Any, dict[KeyPath, in
 def _validator(schema_name: str) -> jsonschema.protocols.Validator:
     schema = json.loads(schema_text(f"{schema_name}.schema.json"))
     cls = jsonschema.validators.validator_for(schema)
-    return cls(schema)  # type: ignore[no-any-return]
+    return cls(schema)
 
 
 def _fits(errors: list[ValidationError]) -> bool:
@@ -126,6 +126,11 @@ def _narrowest(error: ValidationError) -> ValidationError:
     return error
 
 
+def _names(value: Any) -> list[str]:
+    """The property names of a ``required`` keyword."""
+    return [str(name) for name in value] if isinstance(value, list) else []
+
+
 def _message(error: ValidationError) -> tuple[KeyPath, str]:
     """The key path an error points at and a one-line message for it."""
     path: KeyPath = tuple(error.absolute_path)
@@ -136,18 +141,18 @@ def _message(error: ValidationError) -> tuple[KeyPath, str]:
         unknown = next(k for k in value if k not in allowed)
         expected = f" (expected {', '.join(allowed)})" if allowed else ""
         return (*path, unknown), f"unknown key {str(unknown)!r}{expected}"
-    if error.validator == "required":
-        missing = next(k for k in error.validator_value if k not in value)
+    if error.validator == "required" and isinstance(value, dict):
+        missing = next(k for k in _names(error.validator_value) if k not in value)
         return path, f"{missing!r} missing"
     if error.validator == "minItems" and value == []:
         return path, "must not be an empty list"
-    expected = schema.get("description")
-    if expected is None:
+    description = schema.get("description")
+    if description is None:
         return path, error.message
     name = schema.get("title")
     if not name or (path and path[-1] == name):
-        return path, f"must be {expected}, got {value!r}"
-    return path, f"{name} must be {expected}, got {value!r}"
+        return path, f"must be {description}, got {value!r}"
+    return path, f"{name} must be {description}, got {value!r}"
 
 
 def errors(data: Any, schema_name: str) -> Iterator[ValidationError]:

@@ -115,10 +115,22 @@ class EventLog(Subscriber):
         self.events: list[Event] = []
         self.ticks: list[TickRecord] = []
 
-    def on_status(self, seq, t_ns, tick, uid, prev, status) -> None:
+    def on_status(
+        self, seq: int, t_ns: int, tick: int, uid: int, prev: Status, status: Status
+    ) -> None:
         self.events.append(StatusChange(seq, t_ns, tick, uid, prev, status))
 
-    def on_write(self, seq, t_ns, tick, scope, key, value, type_name, writer_uid) -> None:
+    def on_write(
+        self,
+        seq: int,
+        t_ns: int,
+        tick: int,
+        scope: str,
+        key: str,
+        value: Any,
+        type_name: str,
+        writer_uid: int | None,
+    ) -> None:
         self.events.append(
             BlackboardWrite(seq, t_ns, tick, scope, key, value, type_name, writer_uid)
         )

@@ -19,6 +19,7 @@ from collections.abc import Callable
 from dataclasses import dataclass, field
 from datetime import UTC, datetime
 from pathlib import Path
+from typing import Any
 
 from btlog import SCHEMA_VERSION, __version__
 from btlog.domains import make_domain
@@ -148,7 +149,7 @@ class RunConfig:
     def from_metadata(cls, metadata: dict, tree: str | None = None) -> RunConfig:
         """The configuration of a recorded run (for re-running it)."""
 
-        def loaded(key: str, default):
+        def loaded(key: str, default: Any) -> Any:
             value = metadata.get(key, default)
             return json.loads(value) if isinstance(value, str) else value
 

@@ -19,6 +19,7 @@ the tail of a long run.
 from __future__ import annotations
 
 import copy
+from collections.abc import Sequence
 from dataclasses import dataclass, field
 from typing import Any
 
@@ -77,7 +78,7 @@ class State:
         }
 
     @classmethod
-    def from_json(cls, data: dict, mutations: list[TreeMutation] = ()) -> State:
+    def from_json(cls, data: dict, mutations: Sequence[TreeMutation] = ()) -> State:
         """Rebuild a snapshot written by ``to_json``."""
         return cls(
             seq=data["seq"],

@@ -152,12 +152,20 @@ class Comparison:
     @property
     def deleted(self) -> list[tuple[int, Any]]:
         """Items only in ``A``, as ``(a_index, item)`` pairs in index order."""
-        return [(p.a_index, p.a_item) for p in self.alignment.ops if p.op == "delete"]
+        return [
+            (p.a_index, p.a_item)
+            for p in self.alignment.ops
+            if p.op == "delete" and p.a_index is not None
+        ]
 
     @property
     def inserted(self) -> list[tuple[int, Any]]:
         """Items only in ``B``, as ``(b_index, item)`` pairs in index order."""
-        return [(p.b_index, p.b_item) for p in self.alignment.ops if p.op == "insert"]
+        return [
+            (p.b_index, p.b_item)
+            for p in self.alignment.ops
+            if p.op == "insert" and p.b_index is not None
+        ]
 
     @property
     def identical(self) -> bool:

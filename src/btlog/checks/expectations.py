@@ -131,9 +131,11 @@ def _status(value: Any) -> str | None:
 
 def _filled_later(error: ValidationError) -> bool:
     """A missing expected value, which re-recording fills in."""
-    return error.validator == "required" and not {"answer", "status"}.isdisjoint(
-        set(error.validator_value) - set(error.instance)
-    )
+    if error.validator != "required" or not isinstance(error.instance, dict):
+        return False
+    required = error.validator_value if isinstance(error.validator_value, list) else []
+    missing = set(required) - set(error.instance)
+    return not missing.isdisjoint({"answer", "status"})
 
 
 def parse_expectations(
@@ -476,7 +478,9 @@ class RerunReport:
         }
 
 
-def tree_for_rerun(run_path: str | os.PathLike, metadata: dict, tree: str | None = None) -> str:
+def tree_for_rerun(
+    run_path: str | os.PathLike, metadata: dict, tree: str | os.PathLike | None = None
+) -> str:
     """The tree file to re-run: ``tree`` if given, else the recorded tree file: its
     absolute path, then the recorded path from the recording's folder or any folder above
     it (a project's recordings beside its trees), then from here, then beside it."""

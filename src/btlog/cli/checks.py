@@ -148,7 +148,11 @@ def check(args: Namespace) -> int:
     return EXIT_CHECK_FAILED if failed else EXIT_OK
 
 
-def _json(outcomes, expectations: Expectations | None, ok: bool) -> dict:
+def _json(
+    outcomes: list[tuple[str, list[CheckResult], RerunReport | None]],
+    expectations: Expectations | None,
+    ok: bool,
+) -> dict:
     runs = []
     for path, results, report in outcomes:
         entry: dict = {"run": path, "ok": _passed(results, report)}

@@ -11,8 +11,10 @@ from collections import Counter
 from collections.abc import Iterator
 from contextlib import contextmanager
 from pathlib import Path
+from typing import TYPE_CHECKING
 
 from rich.progress import BarColumn, Progress, TextColumn, TimeElapsedColumn
+from rich.text import Text
 
 from btlog.explain.hierarchy import current_nodes
 from btlog.explain.insertion import apply_to_copy
@@ -23,6 +25,11 @@ from btlog.render.terminal import blackboard_lines, format_ns, make_console, tre
 from btlog.runner import RunConfig, execute
 from btlog.status import Status
 from btlog.tree.loader import load_tree
+
+if TYPE_CHECKING:
+    from btlog.replay.database import Run, RunDatabase
+    from btlog.runner import LiveQuestion
+    from btlog.state import State
 
 
 def _print_json(data: object) -> None:
@@ -48,7 +55,7 @@ def run(args: Namespace) -> int:
     )
     console = make_console()
 
-    def on_answer(question, result: Answer, seq: int) -> None:
+    def on_answer(question: LiveQuestion, result: Answer, seq: int) -> None:
         if not args.quiet:
             print(f"[{safe(question.when)}] {safe(question.question)}", flush=True)
             print(f"  {safe(result.text)}", flush=True)
@@ -87,7 +94,7 @@ def run(args: Namespace) -> int:
 
 
 # -- questions ---------------------------------------------------------------------------
-def _open_runs(*paths: str):
+def _open_runs(*paths: str) -> RunDatabase:
     """Open recordings; on a terminal, say so while a first ingestion builds the cache."""
     from btlog.replay.database import open_runs
 
@@ -106,7 +113,7 @@ def _open_runs(*paths: str):
     return database
 
 
-def _open_run(path: str):
+def _open_run(path: str) -> tuple[RunDatabase, Run]:
     database = _open_runs(path)
     return database, database.run(path)
 
@@ -124,7 +131,7 @@ def _moment(path: str, moment: str) -> Iterator[tuple]:
         database.close()
 
 
-def _moment_json(state, moment: str) -> dict:
+def _moment_json(state: State, moment: str) -> dict:
     return {"at": moment, "seq": state.seq, "t_ns": state.t_ns, "tick": state.tick}
 
 
@@ -208,7 +215,7 @@ def show(args: Namespace) -> int:
         console.print(line)
     if args.blackboard:
         console.print()
-        for line in blackboard_lines(state) or [_no_blackboard(args.run)]:
+        for line in blackboard_lines(state) or [Text(_no_blackboard(args.run))]:
             console.print(line)
     return 0
 

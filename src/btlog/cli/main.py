@@ -11,7 +11,7 @@ import argparse
 import os
 import sys
 import traceback
-from collections.abc import Sequence
+from collections.abc import Callable, Sequence
 
 from btlog import __version__
 from btlog.cli.limit_flags import add_limit_flags, apply_limit_flags
@@ -215,7 +215,7 @@ def build_parser() -> argparse.ArgumentParser:
     return parser
 
 
-def _handlers():
+def _handlers() -> dict[str, Callable[[argparse.Namespace], int]]:
     from btlog.cli import cache, checks, commands, replay, sources, view
 
     return {

@@ -15,11 +15,21 @@ from __future__ import annotations
 import sys
 from argparse import Namespace
 from collections.abc import Iterator
+from typing import TYPE_CHECKING
+
+from rich.text import Text
 
 from btlog.explain.hierarchy import current_nodes
 from btlog.explain.questions import UnknownQuestion, answer, explain
 from btlog.render.escape import safe
 from btlog.render.terminal import blackboard_lines, format_ns, make_console, tree_lines
+
+if TYPE_CHECKING:
+    from rich.console import Console
+
+    from btlog.replay.database import Run
+    from btlog.state import State
+    from btlog.tree.model import Tree
 
 HELP = (
     "commands: n [K] next K events | p [K] previous K events | t [K] next K ticks | "
@@ -31,14 +41,14 @@ HELP = (
 class Stepper:
     """The position in a run (the number of events applied) and what to show there."""
 
-    def __init__(self, run, console) -> None:
+    def __init__(self, run: Run, console: Console) -> None:
         self.run = run
         self.console = console
         self.total = run.state_at("end")[1].seq
         self.position = min(1, self.total)
         self.show_blackboard = False
 
-    def state(self):
+    def state(self) -> tuple[Tree, State]:
         """(tree, state) at the current position."""
         if self.total == 0:
             return self.run.state_at("end")
@@ -75,7 +85,7 @@ class Stepper:
         for line in tree_lines(tree, state, current):
             console.print(line)
         if self.show_blackboard:
-            for line in blackboard_lines(state) or ["(the blackboard is empty)"]:
+            for line in blackboard_lines(state) or [Text("(the blackboard is empty)")]:
                 console.print(line)
         for result in explain(tree, state, self.run.history()):
             console.print(f"{result.question}  {safe(result.text)}", highlight=False)

@@ -224,7 +224,7 @@ def scripted_leaf_factory(
     seed: int | None = None,
     effects: Callable[[Node], Effect | None] | None = None,
     durations: Callable[[Node], Outcome | None] | None = None,
-):
+) -> Callable[[Node, Runtime, Blackboard], ScriptedLeaf]:
     """A ``leaf_factory`` for the executor building ``ScriptedLeaf``s from ``outcomes``.
 
     ``durations`` lets a domain give per-type defaults where the outcomes say nothing.

@@ -502,7 +502,7 @@ def generate_tree_xml(
     goal_node = etree.SubElement(main_tree, "Sequence", name=goal)
 
     seen: dict[str, int] = {}
-    used = set()
+    used: set[str] = set()
     for subgoal in subgoals:
         seen[subgoal.name] = seen.get(subgoal.name, 0) + 1
         count = seen[subgoal.name]

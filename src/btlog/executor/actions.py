@@ -127,7 +127,7 @@ class AlwaysFailure(SyncAction):
 class Script(SyncAction):
     """Run the ``code`` script; SUCCESS."""
 
-    def __init__(self, *args) -> None:
+    def __init__(self, *args: Any) -> None:
         super().__init__(*args)
         self._script = compile_script(self.get_input("code"))
 
@@ -139,7 +139,7 @@ class Script(SyncAction):
 class ScriptCondition(Condition):
     """SUCCESS when the ``code`` script is true, else FAILURE."""
 
-    def __init__(self, *args) -> None:
+    def __init__(self, *args: Any) -> None:
         super().__init__(*args)
         self._script = compile_script(self.get_input("code"))
 

@@ -13,6 +13,7 @@ returns RUNNING early and the executor ticks the root again within the same tick
 from __future__ import annotations
 
 import re
+from typing import Any
 
 from btlog.executor.behavior import Behavior, ControlBehavior, NodeExecutionError
 from btlog.status import FAILURE, IDLE, RUNNING, SKIPPED, SUCCESS, Status
@@ -27,7 +28,7 @@ class _InOrder(ControlBehavior):
     decisive: Status
     exhausted: Status
 
-    def __init__(self, *args) -> None:
+    def __init__(self, *args: Any) -> None:
         super().__init__(*args)
         self.index = 0
         self.skipped = 0
@@ -174,7 +175,7 @@ class Parallel(ControlBehavior):
     children succeeded, fail when ``failure_count`` failed or success became impossible
     (halting and resetting all children either way); otherwise RUNNING."""
 
-    def __init__(self, *args) -> None:
+    def __init__(self, *args: Any) -> None:
         super().__init__(*args)
         self.completed: set[int] = set()
         self.successes = 0
@@ -234,7 +235,7 @@ class ParallelAll(ControlBehavior):
     """Tick every child until all have completed, then halt them all and fail if at least
     ``max_failures`` failed, else succeed."""
 
-    def __init__(self, *args) -> None:
+    def __init__(self, *args: Any) -> None:
         super().__init__(*args)
         self.completed: set[int] = set()
         self.failures = 0
@@ -278,7 +279,7 @@ class IfThenElse(ControlBehavior):
     """Tick the condition (child 0) until it completes, then the chosen branch until it
     completes; not reactive. A failed condition with no else branch fails."""
 
-    def __init__(self, *args) -> None:
+    def __init__(self, *args: Any) -> None:
         super().__init__(*args)
         self.branch = 0
 
@@ -343,7 +344,7 @@ class Switch(ControlBehavior):
 
     cases = 2
 
-    def __init__(self, *args) -> None:
+    def __init__(self, *args: Any) -> None:
         super().__init__(*args)
         self.running_child = -1
 

@@ -9,6 +9,8 @@ IDLE they instead signal a wake-up and return RUNNING, and the executor re-ticks
 
 from __future__ import annotations
 
+from typing import Any
+
 from btlog.executor.behavior import Behavior, DecoratorBehavior, NodeExecutionError
 from btlog.status import FAILURE, IDLE, RUNNING, SKIPPED, SUCCESS, Status
 from btlog.tree.script import compile_script, truthy
@@ -73,7 +75,7 @@ class _Loop(DecoratorBehavior):
     limit_port: str
     again: Status
 
-    def __init__(self, *args) -> None:
+    def __init__(self, *args: Any) -> None:
         super().__init__(*args)
         self.count = 0
 
@@ -128,7 +130,7 @@ class RunOnce(DecoratorBehavior):
     """Tick the child until it completes once; afterwards return SKIPPED (``then_skip``)
     or the remembered result, without ticking it again. Halting does not forget."""
 
-    def __init__(self, *args) -> None:
+    def __init__(self, *args: Any) -> None:
         super().__init__(*args)
         self.done: Status | None = None
 
@@ -149,7 +151,7 @@ class Precondition(DecoratorBehavior):
     FAILURE) without ticking the child. As in BT.CPP, a halt does not clear the memory that
     the child was running, so the next activation skips the ``if`` check once."""
 
-    def __init__(self, *args) -> None:
+    def __init__(self, *args: Any) -> None:
         super().__init__(*args)
         self.children_running = False
         self._script = (
@@ -174,7 +176,7 @@ class Precondition(DecoratorBehavior):
 class _Timed(DecoratorBehavior):
     """A decorator with a deadline on the executor's clock, forgotten when halted."""
 
-    def __init__(self, *args) -> None:
+    def __init__(self, *args: Any) -> None:
         super().__init__(*args)
         self.deadline: int | None = None
 

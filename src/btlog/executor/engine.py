@@ -70,15 +70,16 @@ class Executor:
         self.last_status: Status = IDLE
 
     # -- construction ------------------------------------------------------------------
-    def _behavior_class(self, node: Node) -> type[Behavior] | None:
+    def _behavior_class(self, node: Node) -> Callable[..., Behavior] | None:
         node_type = self.registry.get(node.type)
         if node_type is not None and node_type.factory is not None:
-            return node_type.factory
+            factory: Callable[..., Behavior] = node_type.factory
+            return factory
         return BUILTIN_BEHAVIORS.get(node.type)
 
     def _build(self, node: Node, board: Blackboard) -> Behavior:
         cls = self._behavior_class(node)
-        if node.kind == SUBTREE:
+        if node.kind == SUBTREE and cls is not None:
             inner = self._subtree_board(node, board)
             behavior = cls(node, self.runtime, board)
             behavior.children = [self._build(node.children[0], inner)]

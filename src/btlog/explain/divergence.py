@@ -148,6 +148,14 @@ class Row:
     b_index: int | None = None
 
     @property
+    def action(self) -> ExecutedAction:
+        """The row's action: A's, or B's when only B has it."""
+        found = self.a if self.a is not None else self.b
+        if found is None:
+            raise ValueError("a row with no action on either side")
+        return found
+
+    @property
     def divergent(self) -> bool:
         """True when the action is on one side only."""
         return self.op != "equal"
@@ -203,12 +211,12 @@ class SubgoalDivergence:
     @property
     def only_a(self) -> list[ExecutedAction]:
         """Divergent actions of A (not in the LCS), in order."""
-        return [row.a for row in self.rows if row.op == "only_a"]
+        return [row.action for row in self.rows if row.op == "only_a"]
 
     @property
     def only_b(self) -> list[ExecutedAction]:
         """Divergent actions of B (not in the LCS), in order."""
-        return [row.b for row in self.rows if row.op == "only_b"]
+        return [row.action for row in self.rows if row.op == "only_b"]
 
     @property
     def moves(self) -> list[Move]:
@@ -221,16 +229,18 @@ class SubgoalDivergence:
         pending: dict[str, list[int]] = {}
         for position, row in enumerate(self.rows):
             if row.op == "only_a":
-                pending.setdefault(row.a.description, []).append(position)
+                pending.setdefault(row.action.description, []).append(position)
         moves = []
         for position, row in enumerate(self.rows):
-            starts = pending.get(row.b.description) if row.op == "only_b" else None
+            starts = pending.get(row.action.description) if row.op == "only_b" else None
             if starts:
                 start = starts.pop(0)
                 low, high = sorted((start, position))
-                past = tuple(r.a.description for r in self.rows[low + 1 : high] if r.op == "equal")
+                past = tuple(
+                    r.action.description for r in self.rows[low + 1 : high] if r.op == "equal"
+                )
                 moves.append(
-                    Move(row.b.description, "later" if start < position else "earlier", past)
+                    Move(row.action.description, "later" if start < position else "earlier", past)
                 )
         return moves
 
@@ -257,7 +267,8 @@ class SubgoalDivergence:
 
 
 def _divergent_json(row: Row) -> dict:
-    side, action, index = ("a", row.a, row.a_index) if row.a else ("b", row.b, row.b_index)
+    side, index = ("a", row.a_index) if row.a else ("b", row.b_index)
+    action = row.action
     return {
         "side": side,
         "index": index,

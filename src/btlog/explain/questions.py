@@ -16,6 +16,7 @@ from __future__ import annotations
 
 import re
 from dataclasses import dataclass, field
+from typing import Any
 
 from btlog.explain.causes import last_completion, what_went_wrong_over_history
 from btlog.explain.flow import entry, next_sentence
@@ -138,7 +139,7 @@ class Answer:
 
     def to_json(self) -> dict:
         """JSON-ready form (``--json``)."""
-        data = {
+        data: dict[str, Any] = {
             "question": self.question,
             "intent": self.intent,
             "answer": self.text,

@@ -233,8 +233,8 @@ def _episodes(tree: Tree, state: State, history: History) -> tuple[list[Episode]
         episode = by_leaf.get(leaf_done.seq)
         if episode is None:
             sentence = root_failure(tree, state, history) or ""
-            leaf = tree.node(leaf_done.uid).description
-            episode = Episode(leaf_done.seq, leaf_done.t_ns, leaf, sentence, [])
+            described = tree.node(leaf_done.uid).description
+            episode = Episode(leaf_done.seq, leaf_done.t_ns, described, sentence, [])
             episodes.append(episode)
             failures += 1
         episode.handling.append(f"{PROPAGATED} to {tree.root.description}: the run failed")

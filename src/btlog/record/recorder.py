@@ -21,7 +21,7 @@ import math
 import os
 import time
 import uuid
-from collections.abc import Iterable, Mapping
+from collections.abc import Callable, Iterable, Mapping
 from datetime import UTC, datetime, timedelta
 from typing import Any
 
@@ -165,7 +165,7 @@ class Recorder(Subscriber):
         self._events_channel = self._channels[fmt.EVENTS_TOPIC]
         self._last_flush = time.monotonic()
         if type(self).on_status is Recorder.on_status:  # a subclass's override wins
-            self.on_status = self._status_appender()
+            self.on_status = self._status_appender()  # type: ignore[method-assign,assignment]
 
     def _start(self, tree: Tree, attachments: Iterable[tuple[str, bytes]]) -> dict[str, int]:
         writer = self._writer
@@ -195,12 +195,13 @@ class Recorder(Subscriber):
         if self.max_tick_events is not None and len(rows) > self.max_tick_events:
             self._overflow()
 
-    def _status_appender(self):
+    def _status_appender(self) -> Callable[[int, int, int, int, Status, Status], None]:
         """``on_status`` as a closure over the row list: no attribute look-up per event,
         which is most of what a method would cost beyond the append itself."""
         rows = self._status_rows
         append, names, limit = rows.append, STATUS_NAMES, self.max_tick_events
         overflow = self._overflow
+        bound = limit or 0  # used only when there is a limit
 
         def on_status(
             seq: int, t_ns: int, tick: int, uid: int, prev: Status, status: Status
@@ -211,7 +212,7 @@ class Recorder(Subscriber):
             seq: int, t_ns: int, tick: int, uid: int, prev: Status, status: Status
         ) -> None:
             append((seq, t_ns, tick, uid, names[prev], names[status]))
-            if len(rows) > limit:
+            if len(rows) > bound:
                 overflow()
 
         appender = on_status if limit is None else on_status_bounded

@@ -142,7 +142,7 @@ def evict(root: Path, limit: int, keep: set[Path]) -> list[Path]:
 
 def remove_leftovers(folder: Path) -> list[Path]:
     """Remove the temporary files of cache builds whose process is gone (killed)."""
-    removed = []
+    removed: list[Path] = []
     if not folder.is_dir():
         return removed
     for path in folder.iterdir():

@@ -68,7 +68,7 @@ from btlog.replay.snapshots import (
     load_snapshot,
 )
 from btlog.replay.sql_history import SqlHistory
-from btlog.replay.tables import INGEST_VERSION, PUBLIC_TABLES, create_schema, first_row
+from btlog.replay.tables import INGEST_VERSION, PUBLIC_TABLES, create_schema, only_row
 from btlog.state import State, StateProjection
 from btlog.status import STATUS_NAMES, Status
 from btlog.tree.model import Tree
@@ -260,7 +260,7 @@ class RunDatabase:
 
     def _unique_id(self, catalog: str) -> str:
         """The run's id, with a suffix when another open run has it already."""
-        (stored,) = first_row(self.con, f"SELECT run_id FROM {catalog}._ingest")
+        (stored,) = only_row(self.con, f"SELECT run_id FROM {catalog}._ingest")
         if not _SAFE_ID.fullmatch(stored):  # ids go into view definitions
             stored = catalog
         taken = {run.run_id for run in self._runs}
@@ -379,7 +379,7 @@ class Run:
         self.catalog = catalog
         self.run_id = run_id
         self._prefix = f"{catalog}."
-        row = first_row(
+        row = only_row(
             self.con,
             f"SELECT run_id, events, last_tick, truncated, warnings, snapshot_every, "
             f"tree FROM {catalog}._ingest",
@@ -417,7 +417,7 @@ class Run:
     ) -> RunInfo:
         """The run's info, naming the recording as opened now (the cache may have been
         built from a copy of it elsewhere)."""
-        row = first_row(
+        row = only_row(
             self.con,
             f"SELECT file, tree_name, started_at, duration_ns, final_status, domain, "
             f"seed, metadata FROM {self.catalog}.runs",
@@ -460,7 +460,7 @@ class Run:
             self._blocks.move_to_end(index)
             return cached
         seq = index * self.snapshot_every
-        state, events = first_row(
+        state, events = only_row(
             self.con,
             f"SELECT state, events FROM {self._prefix}_snapshots "
             f"WHERE run_id = $run_id AND seq = $seq",

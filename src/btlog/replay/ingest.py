@@ -100,12 +100,13 @@ def load_tables(
     run_id = run_id or short_run_id(read_metadata(name), name)
     try:
         collected = _load_rows(con, run_id, name)
-        metadata = decode_metadata(name, collected.metadata)
-        tree_of(name, collected.tree)
+        metadata = decode_metadata(name, collected.metadata or {})
+        tree_of(name, collected.tree)  # refuses a file without a tree
+        tree = collected.tree or {}
         insert_small_tables(con, run_id, collected)
         extent = extent_of(con, run_id)
         _check_consistency(con, run_id, name, extent)
-        insert_run(con, run_id, name, collected.tree, metadata, extent)
+        insert_run(con, run_id, name, tree, metadata, extent)
         report = IngestReport(
             run_id,
             name,
@@ -119,7 +120,7 @@ def load_tables(
             0,
             snapshot_every,
         )
-        _insert_ingest(con, report, stat, extent, collected.tree)
+        _insert_ingest(con, report, stat, extent, tree)
     except BaseException:
         discard_run(con, run_id)
         raise

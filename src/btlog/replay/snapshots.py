@@ -11,7 +11,7 @@ from __future__ import annotations
 
 from bisect import bisect_left, bisect_right
 from dataclasses import dataclass, field
-from typing import Any
+from typing import Any, cast
 
 import duckdb
 import orjson
@@ -57,10 +57,8 @@ class EventBatch:
     large: set[int] = field(default_factory=set)
 
     def __post_init__(self) -> None:
-        others = self.writes + self.mutations if self.mutations else self.writes
-        self.others: list[BlackboardWrite | TreeMutation] = (
-            sorted(others, key=_seq_of) if self.mutations else others
-        )
+        writes = cast(list[BlackboardWrite | TreeMutation], self.writes)
+        self.others = sorted([*writes, *self.mutations], key=_seq_of) if self.mutations else writes
         self._other_seqs = [e.seq for e in self.others]
 
     def fold(self, projection: StateProjection, lo: int, hi: int) -> None:
@@ -145,7 +143,8 @@ class EventBatch:
         """The batch of a ``block``, with the given mutations of its range."""
         message = orjson.loads(zstandard.ZstdDecompressor().decompress(data))
         writes = [BlackboardWrite(*row) for row in message["writes"]]
-        return cls(*message["status"], writes, mutations)
+        seq, t_ns, tick, uid, prev, status = message["status"]
+        return cls(seq, t_ns, tick, uid, prev, status, writes, mutations)
 
 
 def fetch_events(
@@ -180,7 +179,9 @@ def fetch_events(
         for seq, t, tick, scope, key, value, kind, writer in rows
     ]
     large = {row[0] for row in rows if row[5] is not None and len(row[5]) > INLINE_VALUE_BYTES}
-    return EventBatch(*columns, writes, [m for m in mutations if lo <= m.seq < hi], large)
+    seq, t_ns, tick, uid, prev, status = columns
+    inside = [m for m in mutations if lo <= m.seq < hi]
+    return EventBatch(seq, t_ns, tick, uid, prev, status, writes, inside, large)
 
 
 def _seq_of(event: BlackboardWrite | TreeMutation) -> int:
@@ -188,7 +189,7 @@ def _seq_of(event: BlackboardWrite | TreeMutation) -> int:
 
 
 def _apply_other(projection: StateProjection, event: BlackboardWrite | TreeMutation) -> None:
-    if type(event) is BlackboardWrite:
+    if isinstance(event, BlackboardWrite):
         projection.on_write(*event)
     else:
         projection.on_mutation(event)

@@ -58,6 +58,17 @@ def create_schema(con: duckdb.DuckDBPyConnection) -> None:
         con.execute(statement)
 
 
+def only_row(
+    con: duckdb.DuckDBPyConnection, query: str, params: dict | list | None = None
+) -> tuple[Any, ...]:
+    """The row of a query the read model always answers (one row per run); a missing
+    row means the read model is damaged, which ``ValueError`` says in one line."""
+    row = first_row(con, query, params)
+    if row is None:
+        raise ValueError("the read model is incomplete (remove its cache and try again)")
+    return row
+
+
 def first_row(
     con: duckdb.DuckDBPyConnection, query: str, params: dict | list | None = None
 ) -> tuple[Any, ...] | None:

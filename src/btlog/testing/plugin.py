@@ -30,10 +30,16 @@ costs a pytest session nothing.
 from __future__ import annotations
 
 import os
+from collections.abc import Callable, Iterator
 from pathlib import Path
-from typing import Any
+from typing import TYPE_CHECKING, Any, cast
 
 import pytest
+
+if TYPE_CHECKING:
+    from _pytest._code.code import TerminalRepr, TracebackStyle
+
+    from btlog.checks.expectations import CheckResult, Expectations, StoredRun
 
 SUFFIX = ".expect.yaml"
 UPDATE_OPTION = "--btlog-update"
@@ -67,7 +73,9 @@ def pytest_collect_file(file_path: Path, parent: pytest.Collector) -> pytest.Col
     return None
 
 
-def pytest_terminal_summary(terminalreporter, exitstatus: int, config: pytest.Config) -> None:
+def pytest_terminal_summary(
+    terminalreporter: pytest.TerminalReporter, exitstatus: int, config: pytest.Config
+) -> None:
     """Say which expectation files ``--btlog-update`` rewrote."""
     updated = config.stash.get(_UPDATED, [])
     if updated:
@@ -102,7 +110,7 @@ def _readable(error: BaseException) -> str | None:
 class ExpectFile(pytest.File):
     """An ``*.expect.yaml`` file: one item per expectation entry (and one for ``rerun``)."""
 
-    def collect(self):
+    def collect(self) -> Iterator[ExpectItem]:
         """The items of this file; a bad file is a collection error with one line."""
         from btlog.checks.expectations import ExpectationError, load_expectations
 
@@ -110,7 +118,7 @@ class ExpectFile(pytest.File):
             self.expectations = load_expectations(self.path, partial=_updating(self.config))
         except ExpectationError as error:
             raise self.CollectError(str(error)) from None
-        self._run = None
+        self._run: StoredRun | None = None
         self._changed = False
         expected = self.expectations
         if expected.final_status is not None or _updating(self.config):
@@ -128,7 +136,7 @@ class ExpectFile(pytest.File):
             return self.path.parent / self.expectations.run
         return self.path.with_name(self.path.name[: -len(SUFFIX)] + ".mcap")
 
-    def stored_run(self):
+    def stored_run(self) -> StoredRun:
         """The recording opened once for all items of this file."""
         from btlog.checks.expectations import StoredRun
 
@@ -180,33 +188,41 @@ class ExpectItem(pytest.Item):
             return
         result = self._result()
         if _updating(self.config):
-            self.parent.record(self.kind, self.index, result.actual)
+            self.file.record(self.kind, self.index, result.actual)
         elif not result.ok:
             raise BtlogCheckFailed(result.report())
 
-    def _result(self):
+    @property
+    def file(self) -> ExpectFile:
+        """The expectations file this item comes from."""
+        return cast(ExpectFile, self.parent)
+
+    def _result(self) -> CheckResult:
         from btlog.checks import expectations as ex
 
-        file: ExpectFile = self.parent
+        file = self.file
+        index = self.index or 0
         run, expected = file.stored_run(), file.expectations
         if self.kind == "final_status":
             return ex.check_final_status(run, expected.final_status or "")
         if self.kind == "answers":
-            return ex.check_answer(run, expected.answers[self.index], expected.source)
-        return ex.check_status(run, expected.statuses[self.index], expected.source)
+            return ex.check_answer(run, expected.answers[index], expected.source)
+        return ex.check_status(run, expected.statuses[index], expected.source)
 
     def _rerun(self) -> None:
         from btlog.checks.expectations import rerun
 
-        report = rerun(self.parent.run_path)
+        report = rerun(self.file.run_path)
         if not report.ok:
             raise BtlogCheckFailed(report.render())
 
-    def repr_failure(self, excinfo, style=None):
+    def repr_failure(
+        self, excinfo: pytest.ExceptionInfo[BaseException], style: TracebackStyle | None = None
+    ) -> str | TerminalRepr:
         """The readable report for btlog failures; pytest's own for anything else."""
         return _readable(excinfo.value) or super().repr_failure(excinfo, style=style)
 
-    def reportinfo(self):
+    def reportinfo(self) -> tuple[Path, int | None, str]:
         """Where the item comes from, for pytest's reports."""
         return self.path, None, f"{self.path.name}::{self.name}"
 
@@ -224,7 +240,9 @@ def _resolve(request: pytest.FixtureRequest, path: str | os.PathLike) -> Path:
 
 
 @pytest.fixture
-def btlog_run(request: pytest.FixtureRequest):
+def btlog_run(
+    request: pytest.FixtureRequest,
+) -> Iterator[Callable[[str | os.PathLike], StoredRun]]:
     """A factory opening stored runs: ``run = btlog_run("recordings/kitting-1.mcap")``;
     then ``run.answer(at, question)``, ``run.status(at, node)``, ``run.final_status``,
     ``run.state_at(at)``, ``run.actions``. Runs are closed after the test."""
@@ -243,7 +261,7 @@ def btlog_run(request: pytest.FixtureRequest):
 
 
 @pytest.fixture
-def btlog_expect(request: pytest.FixtureRequest):
+def btlog_expect(request: pytest.FixtureRequest) -> Callable[..., list[CheckResult]]:
     """Assert that a stored run meets expectations:
     ``btlog_expect(run, expectations=None, rerun=False, tree=None)``, where
     ``expectations`` is a mapping or an expectations file. Fails the test with a
@@ -256,9 +274,9 @@ def btlog_expect(request: pytest.FixtureRequest):
         expectations: dict | str | os.PathLike | None = None,
         rerun: bool = False,
         tree: str | os.PathLike | None = None,
-    ) -> list:
+    ) -> list[CheckResult]:
         path = _resolve(request, run_path)
-        results: list = []
+        results: list[CheckResult] = []
         if expectations is not None:
             results = _expect(request, path, expectations)
         if rerun:
@@ -271,7 +289,11 @@ def btlog_expect(request: pytest.FixtureRequest):
     return expect
 
 
-def _expect(request: pytest.FixtureRequest, path: Path, expectations) -> list:
+def _expect(
+    request: pytest.FixtureRequest,
+    path: Path,
+    expectations: dict | str | os.PathLike | Expectations,
+) -> list[CheckResult]:
     from btlog.checks import expectations as ex
 
     if not isinstance(expectations, dict | ex.Expectations):

@@ -55,13 +55,14 @@ Expr = Callable[[Environment], Any]
 
 
 def _tokenize(code: str) -> list[tuple[str, str]]:
-    tokens, pos = [], 0
+    tokens: list[tuple[str, str]] = []
+    pos = 0
     while pos < len(code):
         match = _TOKEN.match(code, pos)
         if match is None:
             raise ScriptError(f"unexpected character {code[pos]!r} at column {pos + 1}")
         pos = match.end()
-        kind = match.lastgroup
+        kind = match.lastgroup or ""
         text = match.group()
         if kind == "ws":
             continue
