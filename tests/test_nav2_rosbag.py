@@ -39,11 +39,13 @@ def record(tmp_path: Path, name: str, tree: Path = TREE, **outcomes: object) -> 
     return open_recording(execute(config, tmp_path / f"{name}.mcap").path)
 
 
-def write_nav2_bag(path: Path, runs: list[Recording], uids: bool = True) -> None:
+def write_nav2_bag(
+    path: Path, runs: list[Recording], uids: bool = True, chunk_size: int = 1 << 20
+) -> None:
     """What Nav2 would have published for these runs, one goal each, 100 s apart."""
     buffer: list[dict] = []
     with open(path, "wb") as stream:
-        writer = Writer(stream)
+        writer = Writer(stream, chunk_size=chunk_size)
         schema = writer.register_msgdef(
             "nav2_msgs/msg/BehaviorTreeLog", LOG_MSGDEF if uids else NO_UID_MSGDEF
         )
@@ -234,3 +236,24 @@ def test_random_trees_round_trip_through_a_nav2_bag(tmp_path_factory, seed: int)
 
     assert absolute(back) == absolute(run)
     assert [n.describe()["type"] for n in back.tree] == [n.describe()["type"] for n in run.tree]
+
+
+def test_a_bag_cut_short_is_read_up_to_the_cut(tmp_path: Path) -> None:
+    """A recorder killed mid-run leaves no summary and a torn last chunk: the whole
+    messages before the cut are imported, with warnings; a bag cut inside its first
+    record is refused."""
+    run = record(tmp_path, "run")
+    bag = tmp_path / "full.mcap"
+    write_nav2_bag(bag, [run], chunk_size=1024)
+    data = bag.read_bytes()
+    cut = tmp_path / "cut.mcap"
+    cut.write_bytes(data[: len(data) * 6 // 10])
+    out = tmp_path / "out.mcap"
+    result = btlog("import", str(cut), "--tree", str(TREE), "-o", str(out))
+    assert result.returncode == 0, result.stderr
+    assert "the bag ends inside a record" in result.stderr
+    imported = transitions(open_recording(out))
+    assert 0 < len(imported) < len(run.transitions)
+    assert imported == transitions(run)[: len(imported)]
+    cut.write_bytes(data[:40])
+    assert_bad_input(btlog("import", str(cut), "--tree", str(TREE)), "not a readable")

@@ -20,13 +20,15 @@ A goal whose root never completes is imported as it is, with the recording's met
 from __future__ import annotations
 
 import os
+import struct
 from collections.abc import Iterator
 from dataclasses import dataclass, field
 from datetime import UTC, datetime
 from pathlib import Path
+from typing import Any, BinaryIO
 
 from mcap.exceptions import McapError
-from mcap.reader import make_reader
+from mcap.reader import McapReader, NonSeekingReader, make_reader
 from mcap_ros2.decoder import DecoderFactory
 
 from btlog.sources.btcpp_tree import tree_from_file, tree_from_log_xml
@@ -75,6 +77,7 @@ class BagLog:
     entries: list[LogEntry]
     messages: int
     tree_xml: bytes | None = None
+    warnings: list[str] = field(default_factory=list)
 
 
 @dataclass
@@ -109,51 +112,85 @@ def _stamp_ns(stamp: object) -> int:
 
 
 def read_bag(path: str | os.PathLike) -> BagLog:
-    """Read and decode ``/behavior_tree_log`` (and the tree XML topic, if any)."""
+    """Read and decode ``/behavior_tree_log`` (and the tree XML topic, if any). A bag
+    cut short (no summary: the recorder was killed) is read up to its last whole
+    record, with a warning."""
     file = bag_file(path)
-    where = os.fspath(file)
+    log = BagLog(os.fspath(file), [], 0)
     try:
         with open(file, "rb") as stream:
-            reader = make_reader(stream, decoder_factories=[DecoderFactory()])
-            summary = reader.get_summary()
-            if summary is None:
-                raise SourceError(f"{where}: the MCAP file has no summary (an unfinished bag?)")
-            _check_topic(summary, where)
-            entries: list[LogEntry] = []
-            messages = 0
-            xml: bytes | None = None
-            topics = [LOG_TOPIC, XML_TOPIC]
-            for _, channel, _message, decoded in reader.iter_decoded_messages(topics=topics):
-                if channel.topic == XML_TOPIC:
-                    xml = str(getattr(decoded, "data", "")).encode()
-                    continue
-                messages += 1
-                entries.extend(_entries(decoded, f"{where}: message {messages}"))
+            _read(stream, log)
     except OSError as error:
-        raise SourceError(f"{where}: cannot read the bag: {error.strerror}") from None
-    except (McapError, ValueError, KeyError, EOFError) as error:
+        raise SourceError(f"{log.file}: cannot read the bag: {error.strerror}") from None
+    if not log.entries:
+        raise SourceError(f"{log.file}: {LOG_TOPIC} holds no status changes")
+    return log
+
+
+def _read(stream: BinaryIO, log: BagLog) -> None:
+    reader: McapReader = make_reader(stream)
+    try:
+        summary = reader.get_summary()
+    except (McapError, ValueError, EOFError, struct.error):
+        summary = None
+    if summary is None:  # no summary: read the records in order, up to any cut
+        stream.seek(0)
+        reader = NonSeekingReader(stream)
+    if summary is not None:
+        channels = list(summary.channels.values())
+        _check_channel(
+            next((c for c in channels if c.topic == LOG_TOPIC), None),
+            summary.schemas,
+            {c.topic for c in channels},
+            log.file,
+        )
+    decoders = DecoderFactory()
+    topics: set[str] = set()
+    checked = False
+    try:
+        for schema, channel, message in reader.iter_messages(log_time_order=False):
+            topics.add(channel.topic)
+            if channel.topic not in (LOG_TOPIC, XML_TOPIC):
+                continue
+            if channel.topic == LOG_TOPIC and not checked:
+                schemas = {} if schema is None else {schema.id: schema}
+                _check_channel(channel, schemas, topics, log.file)
+                checked = True
+            decode = decoders.decoder_for(channel.message_encoding, schema)
+            if decode is None:
+                continue
+            decoded = decode(message.data)
+            if channel.topic == XML_TOPIC:
+                log.tree_xml = str(getattr(decoded, "data", "")).encode()
+                continue
+            log.messages += 1
+            log.entries.extend(_entries(decoded, f"{log.file}: message {log.messages}"))
+    except (McapError, ValueError, KeyError, EOFError, struct.error) as error:
         if isinstance(error, SourceError):
             raise
-        raise SourceError(f"{where}: not a readable rosbag2 MCAP file ({error})") from None
-    if not entries:
-        raise SourceError(f"{where}: {LOG_TOPIC} holds no status changes")
-    return BagLog(where, entries, messages, xml)
+        if summary is not None or not log.entries:
+            reason = str(error) or type(error).__name__
+            raise SourceError(f"{log.file}: not a readable rosbag2 MCAP file ({reason})") from None
+        log.warnings.append(
+            f"{log.file}: the bag ends inside a record (a recording cut short?); "
+            f"read the {log.messages} whole {LOG_TOPIC} messages before the cut"
+        )
+    if not checked:
+        _check_channel(None, {}, topics, log.file)
 
 
-def _check_topic(summary: object, where: str) -> None:
-    channels = list(getattr(summary, "channels", {}).values())
-    schemas = getattr(summary, "schemas", {})
-    log = [c for c in channels if c.topic == LOG_TOPIC]
-    if not log:
-        topics = ", ".join(sorted({c.topic for c in channels})) or "none"
-        raise SourceError(f"{where}: no {LOG_TOPIC} topic (topics: {topics})")
-    schema = schemas.get(log[0].schema_id)
+def _check_channel(channel: Any, schemas: dict, topics: set[str], where: str) -> None:
+    """Refuse a bag without the log topic, or with the topic of another type."""
+    if channel is None:
+        listed = ", ".join(sorted(topics)) or "none"
+        raise SourceError(f"{where}: no {LOG_TOPIC} topic (topics: {listed})")
+    schema = schemas.get(channel.schema_id)
     name = schema.name if schema is not None else "(no schema)"
     encoding = schema.encoding if schema is not None else ""
-    if name != LOG_TYPE or encoding != "ros2msg" or log[0].message_encoding != "cdr":
+    if name != LOG_TYPE or encoding != "ros2msg" or channel.message_encoding != "cdr":
         raise SourceError(
             f"{where}: {LOG_TOPIC} has type {name!r} ({encoding or '?'}/"
-            f"{log[0].message_encoding}); expected {LOG_TYPE} (ros2msg/cdr)"
+            f"{channel.message_encoding}); expected {LOG_TYPE} (ros2msg/cdr)"
         )
 
 
@@ -279,7 +316,7 @@ def import_bag(
             goal=item.index,
             goals=len(goals),
         )
-        results.append(_build(item, tree, source, target, attachments, tick_gap_ns))
+        results.append(_build(item, tree, source, target, attachments, tick_gap_ns, log.warnings))
     return results
 
 
@@ -290,6 +327,7 @@ def _build(
     output: Path,
     attachments: list[tuple[str, bytes]],
     tick_gap_ns: int,
+    warnings: list[str],
 ) -> BuildResult:
     start = goal.entries[0][0].t_ns
     metadata = {} if goal.complete else {"incomplete": INCOMPLETE}
@@ -309,6 +347,7 @@ def _build(
         builder.close()
         output.unlink(missing_ok=True)
         raise
+    builder.warnings.extend(warnings)
     if not goal.complete:
         builder.warnings.append(f"goal {goal.index}: {INCOMPLETE}")
     return builder.close()
