@@ -24,7 +24,8 @@ from pathlib import Path
 
 from btlog.record.reader import open_recording
 from btlog.sinks.btcpp_filelog import export_filelog
-from btlog.sources.btcpp_filelog import RECORD_SIZE, import_filelog, read_filelog
+from btlog.sources.btcpp_filelog import import_filelog, read_filelog
+from btlog.sources.btcpp_records import RECORD_SIZE, encode_record
 
 KITTING = Path(__file__).resolve().parent.parent / "recordings" / "kitting-look-at-chuck-fails.mcap"
 
@@ -40,8 +41,7 @@ def make_log(folder: Path, transitions: int) -> Path:
     out = bytearray(head)
     for i in range(transitions):
         t_us, uid, status = cycle[i % len(cycle)]
-        out += (t_us + (i // len(cycle)) * span).to_bytes(6, "little")
-        out += uid.to_bytes(2, "little") + bytes([int(status)])
+        out += encode_record(t_us + (i // len(cycle)) * span, uid, status)
     path = folder / "long.btlog"
     path.write_bytes(bytes(out))
     return path

@@ -23,6 +23,7 @@ from btlog.events import BlackboardWrite, StatusChange, TreeMutation
 from btlog.record.reader import Recording
 from btlog.sources import FILELOG_MAGIC
 from btlog.sources.btcpp_filelog import VERSION
+from btlog.sources.btcpp_records import MAX_UID, MAX_US, encode_record
 from btlog.sources.builder import SourceError
 from btlog.tree.model import SUBTREE, Node, Tree
 
@@ -36,8 +37,6 @@ PORT_TAGS = {"input": "input_port", "output": "output_port", "inout": "inout_por
 #: btlog's own bookkeeping attributes, not BT.CPP attributes
 _INTERNAL = ("subtree_id", "shared_blackboard")
 _XML_NAME = re.compile(r"^[A-Za-z_][A-Za-z0-9_.-]*$")
-_MAX_UID = 0xFFFF
-_MAX_US = (1 << 48) - 1
 
 
 @dataclass
@@ -105,7 +104,7 @@ def export_filelog(recording: Recording, output: str | os.PathLike) -> ExportRes
             f"{where}: the tree changed {mutations} times during the run ('Can you …?'); "
             "a FileLogger2 file holds one tree"
         )
-    too_big = [n.uid for n in recording.tree if n.uid > _MAX_UID]
+    too_big = [n.uid for n in recording.tree if n.uid > MAX_UID]
     if too_big:
         raise SourceError(f"{where}: uid {too_big[0]} does not fit FileLogger2's 16 bits")
     xml = tree_xml(recording.tree)
@@ -117,11 +116,9 @@ def export_filelog(recording: Recording, output: str | os.PathLike) -> ExportRes
             writes += 1
         elif isinstance(event, StatusChange):
             t_us = event.t_ns // 1000
-            if not 0 <= t_us <= _MAX_US:
+            if not 0 <= t_us <= MAX_US:
                 raise SourceError(f"{where}: event {event.seq} at {t_us} µs is out of range")
-            records += t_us.to_bytes(6, "little")
-            records += event.uid.to_bytes(2, "little")
-            records.append(int(event.status))
+            records += encode_record(t_us, event.uid, event.status)
             transitions += 1
     data = FILELOG_MAGIC + bytes([VERSION]) + struct.pack("<i", len(xml)) + xml
     data += struct.pack("<q", start_us) + bytes(records)

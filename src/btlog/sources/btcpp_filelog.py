@@ -6,8 +6,7 @@ The layout (``src/loggers/bt_file_logger_v2.cpp``), little-endian throughout:
 - an i32 length N and N bytes of tree XML (``WriteTreeToXML`` with ``_uid``/``_fullpath``
   and the ``<TreeNodesModel>``);
 - an i64: the start time in µs since the Unix epoch;
-- 9-byte records until the end: a u48 time in µs since the start, a u16 node uid and a
-  u8 status (0 IDLE, 1 RUNNING, 2 SUCCESS, 3 FAILURE, 4 SKIPPED).
+- 9-byte transition records until the end (``btlog.sources.btcpp_records``).
 
 BT.CPP writes the records from a thread, so a file copied while the robot runs may end in
 the middle of a record: the whole records are imported, with a warning.
@@ -23,6 +22,7 @@ from datetime import UTC, datetime
 from pathlib import Path
 
 from btlog.sources import FILELOG_MAGIC
+from btlog.sources.btcpp_records import RECORD_SIZE, decode_records
 from btlog.sources.btcpp_tree import tree_from_file, tree_from_log_xml
 from btlog.sources.builder import (
     DEFAULT_TICK_GAP_NS,
@@ -37,9 +37,7 @@ from btlog.tree.registry import Registry
 
 FORMAT = "btcpp-filelog2"
 VERSION = 1
-RECORD_SIZE = 9
 _HEAD = len(FILELOG_MAGIC) + 1
-_STATUSES = tuple(Status)
 
 
 @dataclass
@@ -58,15 +56,7 @@ class FileLog:
 
     def transitions(self) -> Iterator[tuple[int, int, Status]]:
         """``(µs since start, uid, status)`` for each record, in file order."""
-        data = self.records
-        for offset in range(0, len(data), RECORD_SIZE):
-            t_us = int.from_bytes(data[offset : offset + 6], "little")
-            uid = int.from_bytes(data[offset + 6 : offset + 8], "little")
-            code = data[offset + 8]
-            if code >= len(_STATUSES):
-                record = offset // RECORD_SIZE
-                raise SourceError(f"{self.file}: record {record}: status {code} is not 0-4")
-            yield t_us, uid, _STATUSES[code]
+        return decode_records(self.records, self.file)
 
 
 def read_filelog(path: str | os.PathLike) -> FileLog:

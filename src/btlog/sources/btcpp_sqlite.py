@@ -22,6 +22,7 @@ from dataclasses import dataclass
 from datetime import UTC, datetime
 from pathlib import Path
 
+from btlog.sources.btcpp_records import status_of
 from btlog.sources.btcpp_tree import tree_from_file, tree_from_log_xml
 from btlog.sources.builder import (
     DEFAULT_TICK_GAP_NS,
@@ -30,14 +31,12 @@ from btlog.sources.builder import (
     Source,
     SourceError,
 )
-from btlog.status import Status
 from btlog.tree.model import Tree
 from btlog.tree.registry import Registry
 
 FORMAT = "btcpp-sqlite"
 TABLES = ("Definitions", "Nodes", "Transitions")
 EXTRA_SCOPE = "btcpp.extra_data"
-_STATUSES = tuple(Status)
 
 
 @dataclass(frozen=True)
@@ -137,10 +136,9 @@ def _import_session(
     builder.warnings.extend(warnings)
     try:
         for timestamp, uid, state, extra in rows:
-            if not isinstance(state, int) or not 0 <= state < len(_STATUSES):
-                raise SourceError(f"{where}: transition at {timestamp}: state {state!r}")
+            status = status_of(state, f"{where}: transition at {timestamp}")
             t_ns = (int(timestamp) - start_us) * 1000
-            builder.transition(t_ns, int(uid), _STATUSES[state])
+            builder.transition(t_ns, int(uid), status)
             if extra:
                 builder.write(t_ns, EXTRA_SCOPE, "extra_data", str(extra), int(uid))
     except BaseException:

@@ -33,6 +33,7 @@ from datetime import UTC, datetime
 from pathlib import Path
 from typing import Any
 
+from btlog.sources.btcpp_records import decode_records
 from btlog.sources.btcpp_tree import tree_from_log_xml
 from btlog.sources.builder import (
     DEFAULT_TICK_GAP_NS,
@@ -48,8 +49,6 @@ from btlog.tree.registry import Registry
 FORMAT = "groot2"
 PROTOCOL = 2
 BUFFER_LIMIT = 1000
-RECORD_SIZE = 9
-_STATUSES = tuple(Status)
 
 
 class Groot2Client:
@@ -123,16 +122,7 @@ class Groot2Client:
 
     def transitions(self) -> list[tuple[int, int, Status]]:
         """The transitions recorded since the last call: (µs since start, uid, status)."""
-        data = self.request("t")
-        rows = []
-        for offset in range(0, len(data) - len(data) % RECORD_SIZE, RECORD_SIZE):
-            t_us = int.from_bytes(data[offset : offset + 6], "little")
-            uid = int.from_bytes(data[offset + 6 : offset + 8], "little")
-            code = data[offset + 8]
-            if code >= len(_STATUSES):
-                raise SourceError(f"{self.endpoint}: transition status {code}")
-            rows.append((t_us, uid, _STATUSES[code]))
-        return rows
+        return list(decode_records(self.request("t"), self.endpoint))
 
     def blackboards(self, names: list[str]) -> dict[str, dict[str, Any]]:
         """The entries of these blackboards (``{name: {key: value}}``)."""

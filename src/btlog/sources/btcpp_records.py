@@ -1,0 +1,44 @@
+"""BT.CPP's transition record and status codes, shared by FileLogger2 files, the Groot2
+protocol's ``t`` replies and the SQLite logger's ``state`` column.
+
+A record is 9 bytes, little-endian: a u48 time in µs since the start, a u16 node uid and
+a u8 status (0 IDLE, 1 RUNNING, 2 SUCCESS, 3 FAILURE, 4 SKIPPED).
+"""
+
+from __future__ import annotations
+
+from collections.abc import Iterator
+
+from btlog.sources.builder import SourceError
+from btlog.status import Status
+
+RECORD_SIZE = 9
+MAX_UID = 0xFFFF
+MAX_US = (1 << 48) - 1
+_STATUSES = tuple(Status)
+
+
+def status_of(code: object, where: str) -> Status:
+    """The status of a BT.CPP status code (``SourceError`` naming ``where`` if none)."""
+    if isinstance(code, int) and 0 <= code < len(_STATUSES):
+        return _STATUSES[code]
+    raise SourceError(f"{where}: status {code!r} is not 0-4")
+
+
+def decode_records(data: bytes, where: str) -> Iterator[tuple[int, int, Status]]:
+    """``(µs since start, uid, status)`` of each whole record in ``data``."""
+    statuses, count, from_bytes = _STATUSES, len(_STATUSES), int.from_bytes
+    for offset in range(0, len(data) - len(data) % RECORD_SIZE, RECORD_SIZE):
+        code = data[offset + 8]
+        if code >= count:
+            status_of(code, f"{where}: record {offset // RECORD_SIZE}")  # raises
+        yield (
+            from_bytes(data[offset : offset + 6], "little"),
+            from_bytes(data[offset + 6 : offset + 8], "little"),
+            statuses[code],
+        )
+
+
+def encode_record(t_us: int, uid: int, status: Status) -> bytes:
+    """The 9 bytes of one transition."""
+    return t_us.to_bytes(6, "little") + uid.to_bytes(2, "little") + bytes([int(status)])
