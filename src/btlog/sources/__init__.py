@@ -10,7 +10,7 @@ small module of its own.
   BT.CPP process is recorded live through the Groot2 protocol (``groot2``).
   ``btcpp_tree`` reads the tree XML BT.CPP writes for its loggers. Nav2's
   ``/behavior_tree_log`` is imported from rosbag2 MCAP files (``nav2_rosbag``).
-- Sinks write a btlog recording in another tool's format (``btlog.sources.sinks``):
+- Sinks write a btlog recording in another tool's format (``btlog.sinks``):
   FileLogger2 for Groot2.
 
 ``detect`` tells the import format of a file from its first bytes.
