@@ -34,7 +34,7 @@ from btlog.executor.actions import Condition, InputPort, OutputPort, SyncAction
 from btlog.executor.behavior import NodeExecutionError
 from btlog.executor.clock import SimClock
 from btlog.executor.engine import Executor
-from btlog.status import RUNNING, SKIPPED, SUCCESS, Status
+from btlog.status import IDLE, RUNNING, SKIPPED, SUCCESS, Status
 from btlog.tree.loader import TreeError, load_tree, load_tree_text
 from btlog.tree.model import Tree
 from btlog.tree.registry import Registry
@@ -154,7 +154,7 @@ def collect(tree: Tree, executor: Executor, log: EventLog) -> Run:
     for event in log.transitions:
         name = tree.node(event.uid).name
         result.ticks.setdefault(event.tick, []).append((name, event.prev.name, event.status.name))
-    result.roots = [record.root_status.name for record in log.ticks]
+    result.roots = [record.root_status.name for record in log.ticks if not record.teardown]
     return result
 
 
@@ -168,10 +168,13 @@ def run(
     fmt: str | None = "4",
     oracle: bool = True,
 ) -> Run:
-    """Run ``Executor.run(max_ticks)`` on the tree (halted if still running at the end)."""
+    """Run ``Executor.run(max_ticks)`` on the tree, then its teardown (a tick of its own
+    that halts what still runs and resets every node left non-IDLE, as BT.CPP does when
+    the tree is destroyed)."""
     text = xml(body, trees, fmt)
     tree, executor, log = build(text, nodes, period)
     executor.run(max_ticks)
+    executor.teardown()
     result = collect(tree, executor, log)
     if CROSSCHECK and oracle:
         crosscheck(text, nodes or {}, max_ticks, result)
@@ -295,7 +298,7 @@ def test_control_of_skipped_children_is_skipped_and_stays_running(control: str) 
     assert r.roots == ["SKIPPED", "SKIPPED"]
     assert r.ticks == {
         1: [("n", "IDLE", "RUNNING")],
-        2: [("n", "RUNNING", "IDLE")],
+        3: [("n", "RUNNING", "IDLE")],
     }
 
 
@@ -401,8 +404,9 @@ def test_sequence_with_memory_keeps_earlier_successes_in_the_log() -> None:
             ("f", "RUNNING", "FAILURE"),
             ("f", "FAILURE", "IDLE"),
         ],
+        2: [("a", "SUCCESS", "IDLE")],  # until the teardown resets it (BT.CPP's haltTree)
     }
-    assert r.executor.statuses()[r.tree.lookup("a")[0].uid] is SUCCESS
+    assert r.executor.statuses()[r.tree.lookup("a")[0].uid] is IDLE
 
 
 def test_sequence_with_memory_wakes_up_after_a_success_from_idle() -> None:
@@ -501,9 +505,8 @@ def test_reactive_sequence_halts_a_later_running_child() -> None:
             ("a", "IDLE", "RUNNING"),
             ("c", "SUCCESS", "IDLE"),
             ("b", "RUNNING", "IDLE"),
-            ("a", "RUNNING", "IDLE"),
-            ("r", "RUNNING", "IDLE"),
         ],
+        5: [("a", "RUNNING", "IDLE"), ("r", "RUNNING", "IDLE")],
     }
 
 
@@ -808,6 +811,7 @@ def test_if_then_else_without_else_fails() -> None:
             ("i", "RUNNING", "FAILURE"),
             ("i", "FAILURE", "IDLE"),
         ],
+        2: [("c", "FAILURE", "IDLE")],  # the teardown resets it
     }
 
 
@@ -851,7 +855,7 @@ def test_while_do_else_halts_the_other_branch() -> None:
         1: [("w", "IDLE", "RUNNING"), ("c", "IDLE", "SUCCESS"), ("d", "IDLE", "RUNNING")],
         2: [("c", "SUCCESS", "FAILURE"), ("d", "RUNNING", "IDLE"), ("e", "IDLE", "RUNNING")],
         3: [("c", "FAILURE", "SUCCESS"), ("e", "RUNNING", "IDLE"), ("d", "IDLE", "RUNNING")],
-        4: [("c", "SUCCESS", "IDLE"), ("d", "RUNNING", "IDLE"), ("w", "RUNNING", "IDLE")],
+        5: [("c", "SUCCESS", "IDLE"), ("d", "RUNNING", "IDLE"), ("w", "RUNNING", "IDLE")],
     }
 
 
@@ -1157,7 +1161,7 @@ def test_repeat_of_a_skipped_child_is_skipped() -> None:
     assert r.roots == ["SKIPPED", "SKIPPED"]
     assert r.ticks == {
         1: [("r", "IDLE", "RUNNING")],
-        2: [("r", "RUNNING", "IDLE")],
+        3: [("r", "RUNNING", "IDLE")],
     }
 
 
@@ -1706,7 +1710,7 @@ def test_while_false_halts_a_running_node_and_runs_on_halted() -> None:
             ("q", "RUNNING", "SUCCESS"),
         ],
         3: [("a", "RUNNING", "IDLE")],
-        5: [
+        6: [
             ("s", "SUCCESS", "IDLE"),
             ("q", "SUCCESS", "IDLE"),
             ("p", "RUNNING", "IDLE"),
@@ -1744,7 +1748,7 @@ def test_while_false_halts_a_running_control_node() -> None:
             ("q", "RUNNING", "SUCCESS"),
         ],
         3: [("a", "RUNNING", "IDLE"), ("inner", "RUNNING", "IDLE")],
-        4: [
+        5: [
             ("s", "SUCCESS", "IDLE"),
             ("q", "SUCCESS", "IDLE"),
             ("p", "RUNNING", "IDLE"),
@@ -1799,15 +1803,18 @@ def test_post_conditions_run_on_completion() -> None:
 
 
 def test_halted_run_at_max_ticks() -> None:
-    """``Executor.run(max_ticks)`` halts a tree still running after the last tick: children are
-    reset in order (a SUCCESS->IDLE, the running b RUNNING->IDLE), then the Sequence; the halt
-    belongs to the last tick."""
+    """The teardown halts a tree still running after the last tick: children are reset in
+    order (a SUCCESS->IDLE, the running b RUNNING->IDLE), then the Sequence; the halt is a
+    tick of its own (tick 3), marked as the teardown."""
     r = run(f'<Sequence name="s">{act("a")}{act("b")}</Sequence>', {"b": [ok(5)]}, max_ticks=2)
     assert r.roots == ["RUNNING", "RUNNING"]
     assert r.ticks == {
         1: [("s", "IDLE", "RUNNING"), ("a", "IDLE", "SUCCESS"), ("b", "IDLE", "RUNNING")],
-        2: [("a", "SUCCESS", "IDLE"), ("b", "RUNNING", "IDLE"), ("s", "RUNNING", "IDLE")],
+        3: [("a", "SUCCESS", "IDLE"), ("b", "RUNNING", "IDLE"), ("s", "RUNNING", "IDLE")],
     }
+    assert [t.teardown for t in r.log.ticks] == [False, False, True]
+    assert r.log.ticks[-1].root_status.name == "IDLE"
+    assert r.log.ticks[-1].start_ns == r.log.ticks[-1].end_ns == r.log.ticks[-2].end_ns
 
 
 def test_subtree_remapping_literals_and_outputs() -> None:

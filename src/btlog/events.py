@@ -66,12 +66,15 @@ class TreeMutation(NamedTuple):
 
 
 class TickRecord(NamedTuple):
-    """Root tick ``tick`` ran from ``start_ns`` to ``end_ns`` and returned ``root_status``."""
+    """Root tick ``tick`` ran from ``start_ns`` to ``end_ns`` and returned ``root_status``;
+    ``teardown`` marks the run's final tick in which the tree was halted as BT.CPP halts a
+    tree it destroys (its root status is IDLE)."""
 
     tick: int
     start_ns: int
     end_ns: int
     root_status: Status
+    teardown: bool = False
 
 
 Event = StatusChange | BlackboardWrite | TreeMutation

@@ -67,6 +67,7 @@ class Executor:
         self.behaviors: dict[int, Behavior] = {}
         self.root = self._build(tree.root, self.root_board)
         self.started = False
+        self.torn_down = False
         self.last_status: Status = IDLE
 
     # -- construction ------------------------------------------------------------------
@@ -197,8 +198,8 @@ class Executor:
     def run(
         self, max_ticks: int | None = None, before_tick: Callable[[Executor], None] | None = None
     ) -> Status:
-        """Tick until the root completes or ``max_ticks``; a run stopped by the limit halts
-        the tree. Returns the last root status."""
+        """Tick until the root completes or ``max_ticks``; returns the last root status. A
+        run stopped by the limit is left RUNNING: ``teardown`` (or ``close``) halts it."""
         status = IDLE
         while max_ticks is None or self.runtime.tick < max_ticks:
             if before_tick is not None:
@@ -206,8 +207,26 @@ class Executor:
             status = self.tick()
             if status is SUCCESS or status is FAILURE:
                 return status
-        self.halt()
         return status
+
+    def teardown(self) -> None:
+        """End the run as BehaviorTree.CPP does when a tree is destroyed: ``haltTree``,
+        which halts what still runs and resets every node left non-IDLE (a
+        SequenceWithMemory's completed children, a run stopped by ``max_ticks``). It is
+        a tick of its own, at the time the last tick ended, recorded with
+        ``teardown=True``; once per run, and only after a first tick."""
+        if self.torn_down or not self.started:
+            return
+        self.torn_down = True
+        runtime = self.runtime
+        runtime.tick += 1
+        start = runtime.clock.now_ns()
+        self.halt()
+        self.last_status = IDLE
+        if self.subscribers:
+            record = TickRecord(runtime.tick, start, runtime.clock.now_ns(), IDLE, teardown=True)
+            for subscriber in self.subscribers:
+                subscriber.on_tick(record)
 
     def halt(self) -> None:
         """Halt the whole tree as BT.CPP's ``haltTree``: halt the root, then every node in
@@ -221,8 +240,11 @@ class Executor:
             stack.extend(reversed(behavior.children))
         self.root.reset_status()
 
-    def close(self) -> None:
-        """Tell subscribers the run is over."""
+    def close(self, teardown: bool = True) -> None:
+        """Tear the tree down (unless ``teardown`` is false, e.g. after an error in a
+        tick) and tell subscribers the run is over."""
+        if teardown:
+            self.teardown()
         for subscriber in self.subscribers:
             subscriber.on_close()
 
