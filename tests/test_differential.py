@@ -2,8 +2,10 @@
 
 Random trees built from the built-in nodes, with scripted leaves (stateful actions that
 run k ticks, conditions), run in BT.CPP (behaviortreepy, in a subprocess: a few trees can
-crash it) and in btlog; the sequences of (tick, node, prev, new) transitions, IDLE resets
-and halts included, must be identical.
+crash it) and in btlog; the complete sequences of (tick, node, prev, new) transitions, IDLE
+resets and halts included, must be identical: up to the teardown, the tick after the last
+one, in which the destroyed tree is halted (BT.CPP's destructor; btlog's ``teardown``),
+for runs that complete and runs stopped by ``max_ticks`` alike.
 """
 
 from __future__ import annotations
@@ -36,6 +38,7 @@ def btlog_transitions(case) -> list[list]:
     log = EventLog()
     executor.subscribe(log)
     executor.run(case.max_ticks)
+    executor.teardown()
     names = {n.uid: n.name for n in tree}
     return [[e.tick, names[e.uid], e.prev.name, e.status.name] for e in log.transitions]
 
@@ -50,6 +53,7 @@ def oracle_results():
 
 def test_btlog_matches_btcpp_transition_for_transition(oracle_results) -> None:
     compared, skipped, mismatches = 0, 0, []
+    with_teardown = {"completed": 0, "stopped": 0}
     for case, result in oracle_results:
         if result is None or result.get("error"):
             skipped += 1
@@ -57,6 +61,8 @@ def test_btlog_matches_btcpp_transition_for_transition(oracle_results) -> None:
         compared += 1
         ours = btlog_transitions(case)
         theirs = result["transitions"]
+        if any(t[0] == result["teardown_tick"] for t in theirs):
+            with_teardown["stopped" if result["halted"] else "completed"] += 1
         if ours != theirs:
             first = next(
                 (i for i, (a, b) in enumerate(zip(ours, theirs, strict=False)) if a != b),
@@ -72,9 +78,10 @@ def test_btlog_matches_btcpp_transition_for_transition(oracle_results) -> None:
             )
     print(
         f"differential: {compared} trees compared, {skipped} skipped (BT.CPP crashed or "
-        f"refused the tree)"
+        f"refused the tree); teardown transitions in {with_teardown}"
     )
     assert compared >= CASES * 0.9
+    assert min(with_teardown.values()) > 0  # both kinds of ending have a teardown to compare
     assert not mismatches, (
         "\n".join(
             f"seed {seed}: first difference at transition {i}: BT.CPP {a} btlog {b}"

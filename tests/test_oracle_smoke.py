@@ -135,9 +135,9 @@ def test_reactive_sequence_resets_earlier_condition_every_tick() -> None:
 
 @needs_btcpp
 def test_running_action_is_halted_after_max_ticks() -> None:
-    """After max_ticks the oracle calls halt_tree(): the root Sequence resets its children
-    in order (the completed 'a' SUCCESS->IDLE, the running 'b' RUNNING->IDLE), then itself.
-    The halt transitions carry the number of the last tick."""
+    """After max_ticks the tree is destroyed and BT.CPP's destructor halts it: the root
+    Sequence resets its children in order (the completed 'a' SUCCESS->IDLE, the running 'b'
+    RUNNING->IDLE), then itself. The halt transitions carry the teardown tick (last + 1)."""
     result = _run(
         '<Sequence name="s"><ScriptedAction name="a"/><ScriptedAction name="b"/></Sequence>',
         {"a": _ok(), "b": _ok(ticks=5)},
@@ -147,12 +147,26 @@ def test_running_action_is_halted_after_max_ticks() -> None:
         [1, "s", "IDLE", "RUNNING"],
         [1, "a", "IDLE", "SUCCESS"],
         [1, "b", "IDLE", "RUNNING"],
-        [2, "a", "SUCCESS", "IDLE"],
-        [2, "b", "RUNNING", "IDLE"],
-        [2, "s", "RUNNING", "IDLE"],
+        [3, "a", "SUCCESS", "IDLE"],
+        [3, "b", "RUNNING", "IDLE"],
+        [3, "s", "RUNNING", "IDLE"],
     ]
     assert result["root"] == ["RUNNING", "RUNNING"]
-    assert result["halted"] is True
+    assert (result["halted"], result["teardown_tick"]) == (True, 3)
+
+
+@needs_btcpp
+def test_destroying_a_completed_tree_resets_what_memory_kept() -> None:
+    """A SequenceWithMemory whose second child fails keeps its first child SUCCESS after the
+    run ended; destroying the tree halts it, and the logger sees ``c1 SUCCESS -> IDLE``."""
+    result = _run(
+        '<SequenceWithMemory name="s"><ScriptedAction name="c1"/>'
+        '<ScriptedAction name="c2"/></SequenceWithMemory>',
+        {"c1": _ok(), "c2": [{"status": "FAILURE"}]},
+    )
+    assert result["root"] == ["FAILURE"]
+    assert result["transitions"][-2:] == [[1, "s", "FAILURE", "IDLE"], [2, "c1", "SUCCESS", "IDLE"]]
+    assert (result["halted"], result["teardown_tick"]) == (False, 2)
 
 
 def test_scripted_leaves_model() -> None:

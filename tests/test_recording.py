@@ -404,8 +404,12 @@ def test_messages_have_exactly_the_fields_of_their_schemas(tmp_path):
         schema = schema_for(topic)
         assert schema["$schema"] == "https://json-schema.org/draft/2020-12/schema"
         assert schema["title"] == fmt.TOPICS[topic][0]
+        optional = {"teardown"} if topic == fmt.TICKS_TOPIC else set()
+        assert set(schema["properties"]) == set(schema["required"]) | optional
         for message in messages:
-            assert set(message) == set(schema["properties"]) == set(schema["required"])
+            assert set(schema["required"]) <= set(message) <= set(schema["properties"])
+    # The run's last ticks message is its teardown, marked; no other message is.
+    assert [m.get("teardown", False) for m in found[fmt.TICKS_TOPIC]][-2:] == [False, True]
     row_lengths = {"status": 6, "writes": 8}
     for name, length in row_lengths.items():
         assert (

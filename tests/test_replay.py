@@ -240,7 +240,7 @@ SECTION_5 = {
     ],
     "transitions": ["run_id", "seq", "t_ns", "tick", "uid", "prev_status", "status"],
     "blackboard": ["run_id", "seq", "t_ns", "tick", "scope", "key", "value", "type", "writer_uid"],
-    "ticks": ["run_id", "tick", "start_ns", "end_ns", "root_status"],
+    "ticks": ["run_id", "tick", "start_ns", "end_ns", "root_status", "teardown"],
     "mutations": [
         "run_id",
         "seq",
@@ -303,13 +303,16 @@ def test_tables_hold_the_run(kitting, tmp_path):
             (e.seq, e.t_ns, e.tick, e.uid, e.prev.name, e.status.name) for e in transitions
         ]
         _c, ticks = database.sql(
-            "SELECT tick, start_ns, end_ns, root_status FROM ticks ORDER BY tick"
+            "SELECT tick, start_ns, end_ns, root_status, teardown FROM ticks ORDER BY tick"
         )
-        assert ticks == [(t.tick, t.start_ns, t.end_ns, t.root_status.name) for t in live.log.ticks]
+        assert ticks == [
+            (t.tick, t.start_ns, t.end_ns, t.root_status.name, t.teardown) for t in live.log.ticks
+        ]
+        assert [t[-1] for t in ticks[-2:]] == [False, True]
         _c, [(final, duration, domain, seed, tree_name)] = database.sql(
             "SELECT final_status, duration_ns, domain, seed, tree_name FROM runs"
         )
-        assert final == live.log.ticks[-1].root_status.name
+        assert final == live.log.ticks[-2].root_status.name  # the teardown's is IDLE
         assert duration == max(live.log.ticks[-1].end_ns, transitions[-1].t_ns)
         assert (domain, seed, tree_name) == ("scripted", 5, "MainTree")
         _c, nodes = database.sql(

@@ -13,7 +13,6 @@ from __future__ import annotations
 import hashlib
 import json
 import os
-import re
 import uuid
 from collections.abc import Callable
 from dataclasses import dataclass, field
@@ -24,67 +23,20 @@ from typing import Any
 from btlog import SCHEMA_VERSION, __version__
 from btlog.domains import make_domain
 from btlog.domains.outcomes import FailSpec, Outcomes, OutcomesError
-from btlog.events import Subscriber
 from btlog.executor.clock import SimClock, WallClock
 from btlog.executor.engine import Executor
-from btlog.explain.questions import Answer, answer, parse_question
-from btlog.history import LiveHistory
+from btlog.explain.questions import Answer
+from btlog.live_questions import LiveQuestion, LiveQuestionError, LiveQuestions
 from btlog.record.recorder import Recorder
 from btlog.status import Status
 from btlog.tree.loader import load_nodes_model, load_tree
 from btlog.tree.model import Tree
 
 DEFAULT_MAX_TICKS = 100_000
-_LIVE_MOMENT = re.compile(
-    r"^(?:(?P<tick>tick:)(?P<n>\d+)|(?P<seq>seq:)(?P<s>\d+)|"
-    r"(?P<num>\d+(?:\.\d*)?|\.\d+)(?P<unit>s|ms|us|ns)?)$"
-)
-_UNIT_NS = {"s": 1e9, "ms": 1e6, "us": 1e3, "ns": 1.0}
 
 
 class RunError(ValueError):
     """A run that cannot start (bad option or input); one line."""
-
-
-@dataclass(frozen=True)
-class LiveQuestion:
-    """``--ask WHEN=QUESTION``: WHEN is ``12.5``/``12.5s``/``1500ms``…, ``tick:N`` or
-    ``seq:N`` (answered at the end of the tick holding event N)."""
-
-    when: str
-    question: str
-    kind: str
-    value: int
-
-    @classmethod
-    def parse(cls, text: str) -> LiveQuestion:
-        """Parse ``WHEN=QUESTION``."""
-        when, sep, question = text.partition("=")
-        when, question = when.strip(), question.strip()
-        if not sep or not when or not question:
-            raise RunError(
-                f"--ask {text!r}: expected WHEN=QUESTION, e.g. 12.5s=What are you doing?"
-            )
-        match = _LIVE_MOMENT.match(when)
-        if match is None:
-            raise RunError(
-                f"--ask {text!r}: unparseable moment {when!r} (use 12.5s, 1500ms, tick:N or seq:N)"
-            )
-        parse_question(question)
-        if match["tick"]:
-            return cls(when, question, "tick", int(match["n"]))
-        if match["seq"]:
-            return cls(when, question, "seq", int(match["s"]))
-        ns = round(float(match["num"]) * _UNIT_NS[match["unit"] or "s"])
-        return cls(when, question, "time", ns)
-
-    def due(self, executor: Executor, next_tick_ns: int) -> bool:
-        """True when the state now is the state at WHEN."""
-        if self.kind == "tick":
-            return executor.runtime.tick >= self.value
-        if self.kind == "seq":
-            return executor.seq > self.value
-        return next_tick_ns > self.value
 
 
 @dataclass
@@ -186,70 +138,8 @@ class RunResult:
     ticks: int
     events: int
     answers: list[tuple[LiveQuestion, Answer, int]]
-
-
-class LiveQuestions(Subscriber):
-    """Answers the run's live questions at tick boundaries from the live state projection
-    and history."""
-
-    def __init__(
-        self,
-        executor: Executor,
-        questions: list[LiveQuestion],
-        recorder: Recorder | None,
-        on_answer: Callable[[LiveQuestion, Answer, int], None] | None,
-    ) -> None:
-        self.executor = executor
-        self.pending = list(questions)
-        self.recorder = recorder
-        self.on_answer = on_answer
-        self.projection = LiveHistory(executor.tree)
-        self.answered: list[tuple[LiveQuestion, Answer, int]] = []
-        executor.subscribe(self.projection)
-
-    def before_tick(self, executor: Executor) -> None:
-        """Answer every question that is due before the next tick."""
-        next_ns = executor.runtime.tick * executor.runtime.clock.period_ns
-        if not executor.runtime.clock.simulated:
-            next_ns = executor.runtime.clock.now_ns()
-        for question in [q for q in self.pending if q.due(executor, next_ns)]:
-            self.pending.remove(question)
-            self.ask(question, next_ns)
-
-    def ask(self, question: LiveQuestion, at_ns: int | None = None) -> Answer:
-        """Answer now (``at_ns``: the run's time); a "Can you …?" with a plan changes the
-        running tree."""
-        state = self.projection.state
-        tree, history = self.projection.tree, self.projection
-        result = answer(tree, state, question.question, history, at_ns)
-        seq = self.executor.seq
-        if result.insertion is not None:
-            plan = result.insertion
-            self.executor.insert_after(
-                plan.parent.uid,
-                plan.after.uid,
-                self.executor.tree.node(plan.source.uid),
-                question.question,
-            )
-        if self.recorder is not None:
-            self.recorder.on_answer(
-                seq,
-                state.t_ns,
-                self.executor.runtime.tick,
-                question.question,
-                result.intent,
-                result.text,
-            )
-        self.answered.append((question, result, seq))
-        if self.on_answer is not None:
-            self.on_answer(question, result, seq)
-        return result
-
-    def finish(self) -> None:
-        """Answer what is left at the end of the run."""
-        for question in list(self.pending):
-            self.pending.remove(question)
-            self.ask(question)
+    #: One line per live question whose moment lies outside the run (not answered).
+    refused: list[str] = field(default_factory=list)
 
 
 def default_output(tree_path: str, run_id: str) -> Path:
@@ -268,7 +158,10 @@ def execute(
     tree = load_tree(config.tree, registry)
     outcomes = config.load_outcomes()
     outcomes.check_keys(tree)
-    questions = [LiveQuestion.parse(q) for q in config.questions]
+    try:
+        questions = [LiveQuestion.parse(q) for q in config.questions]
+    except LiveQuestionError as error:
+        raise RunError(str(error)) from None
     try:
         domain = make_domain(config.domain, config.seed)
     except ValueError as error:
@@ -282,15 +175,12 @@ def execute(
     run_id = uuid.uuid4().hex[:12]
     path = Path(output) if output else default_output(config.tree, run_id)
     attachments = [(Path(f).name, Path(f).read_bytes()) for f in tree.files]
-    recorder = Recorder(
-        path,
-        tree,
-        config.to_metadata(tree, run_id, outcomes),
-        attachments,
-        flush_interval=config.flush_interval,
-    )
+    metadata = config.to_metadata(tree, run_id, outcomes)
+    recorder = Recorder(path, tree, metadata, attachments, flush_interval=config.flush_interval)
     executor.subscribe(recorder)
-    live = LiveQuestions(executor, questions, recorder, on_answer) if questions else None
+    live = None
+    if questions:
+        live = LiveQuestions(executor, questions, recorder, on_answer, metadata["started_at"])
 
     def before_tick(ex: Executor) -> None:
         if live is not None:
@@ -300,15 +190,20 @@ def execute(
 
     try:
         status = executor.run(config.max_ticks, before_tick)
+        ticks = executor.runtime.tick
+        executor.teardown()  # BT.CPP halts the tree it destroys; the answers at end see it
         if live is not None:
             live.finish()
-    finally:
-        executor.close()
+    except BaseException:
+        executor.close(teardown=False)
+        raise
+    executor.close()
     return RunResult(
         path,
         run_id,
         status,
-        executor.runtime.tick,
+        ticks,
         executor.seq,
         live.answered if live is not None else [],
+        live.refused if live is not None else [],
     )

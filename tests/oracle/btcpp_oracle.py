@@ -23,9 +23,13 @@ Output, one JSON object on stdout::
      "error": null,
      "ticks": 3, "halted": false, "other_output": []}
 
-* ``tick`` counts the calls of ``tick_once`` from 1; the transitions of the final
-  ``halt_tree()`` (made when the root is still RUNNING or SKIPPED after ``max_ticks``) carry
-  the number of the last tick, and ``halted`` is true.
+* ``tick`` counts the calls of ``tick_once`` from 1. After the last tick the tree is
+  destroyed, as when a program ends: BT.CPP's destructor halts the whole tree
+  (``haltTree``), which halts what still runs and resets every node left non-IDLE; those
+  transitions carry the number of the last tick + 1 (``teardown_tick``); with a Groot2
+  publisher the tree is not destroyed, and a run still RUNNING after ``max_ticks`` is
+  halted with ``halt_tree()`` in its last tick instead. ``halted`` is
+  true when the root was still RUNNING or SKIPPED after ``max_ticks``.
 * ``root`` holds the status returned by each ``tick_once``.
 * ``error`` is null, or ``"create: <message>"`` when BT.CPP refused the XML, or
   ``"tick N: <message>"`` when a tick threw (transitions up to the throw are kept; no
@@ -41,6 +45,7 @@ temporary file while BT.CPP runs, and restored before the JSON is printed.
 from __future__ import annotations
 
 import ctypes
+import gc
 import json
 import os
 import re
@@ -165,8 +170,8 @@ def run_case(
 ) -> dict[str, Any]:
     """Run ``xml`` in BT.CPP for at most ``max_ticks`` ticks; return the result dict.
 
-    Must run in a process of its own: it redirects file descriptor 1 while BT.CPP runs and
-    leaves the tree alive (its destructor halts it again), so call it once and exit.
+    Must run in a process of its own: it redirects file descriptor 1 while BT.CPP runs, so
+    call it once and exit.
     """
     import behaviortreepy as bt
 
@@ -177,6 +182,7 @@ def run_case(
         "error": None,
         "ticks": 0,
         "halted": False,
+        "teardown_tick": None,
         "other_output": [],
     }
     transitions: list[list[Any]] = result["transitions"]
@@ -228,19 +234,28 @@ def run_case(
                 return result
             if last in ("SUCCESS", "FAILURE"):
                 break
-        if last not in ("SUCCESS", "FAILURE"):
-            result["halted"] = True
-            try:
-                tree.halt_tree()
-            except Exception as exc:
-                result["error"] = f"halt: {exc}"
-            collect(capture.read_lines(), result["ticks"])
+        result["halted"] = last not in ("SUCCESS", "FAILURE")
+        if groot2_port:  # the publisher refers to the tree: halt it, never destroy it
+            if result["halted"]:
+                try:
+                    tree.halt_tree()
+                except Exception as exc:
+                    result["error"] = f"halt: {exc}"
+                collect(capture.read_lines(), result["ticks"])
+        else:
+            result["teardown_tick"] = result["ticks"] + 1
+            keep_alive.remove(tree)
+            if tick_sleep_ms:  # the teardown comes as late as a tick would
+                time.sleep(tick_sleep_ms / 1000)
+            del tree, tick_fn  # the destructor halts the tree; the loggers, still alive, see it
+            gc.collect()
+            collect(capture.read_lines(), result["teardown_tick"])
         _handshake(sync_dir, "ran", "quit")
     finally:
         if file_logger:  # let its writer thread drain its queue, then release it
             time.sleep(0.05)
             file_logger.clear()
-        collect(capture.restore(), result["ticks"])
+        collect(capture.restore(), result["teardown_tick"] or result["ticks"])
         _KEEP.extend(keep_alive)
     return result
 
@@ -256,7 +271,7 @@ def _handshake(sync_dir: str | None, done: str, then: str, timeout: float = 60.0
         time.sleep(0.005)
 
 
-_KEEP: list[Any] = []  # trees are never destroyed: main() leaves with os._exit
+_KEEP: list[Any] = []  # what is left is never destroyed: main() leaves with os._exit
 
 
 MAX_OUTPUT_BYTES = 64 * 1024 * 1024

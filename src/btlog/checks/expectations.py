@@ -208,7 +208,7 @@ def write_expectations(path: str | os.PathLike, data: dict) -> None:
 def final_status_of(recording: Recording) -> str:
     """How a recorded run ended: the root status of its last tick (IDLE if it never
     ticked; RUNNING if it was stopped or cut short while running)."""
-    ticks = recording.ticks
+    ticks = [t for t in recording.ticks if not t.teardown]  # the teardown's root is IDLE
     return ticks[-1].root_status.name if ticks else Status.IDLE.name
 
 

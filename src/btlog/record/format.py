@@ -117,7 +117,8 @@ def encode_mutation(mutation: TreeMutation) -> dict:
 
 def decode_ticks(message: dict) -> list[TickRecord]:
     """The tick records of one ``/btlog/ticks`` message."""
+    teardown = bool(message.get("teardown", False))
     return [
-        TickRecord(tick, start, end, _STATUS_BY_NAME[status])
+        TickRecord(tick, start, end, _STATUS_BY_NAME[status], teardown)
         for tick, start, end, status in message.get("ticks", ())
     ]

@@ -252,10 +252,16 @@ class Recorder(Subscriber):
         the interval has passed."""
         if self._closed:
             return
-        tick, start_ns, end_ns, root_status = record
+        tick, start_ns, end_ns, root_status, teardown = record
+        row = (tick, start_ns, end_ns, STATUS_NAMES[root_status])
+        if teardown:  # a message of its own, marked: the run's final halt
+            self._write_events(tick)
+            self._write_ticks()
+            self._add(fmt.TICKS_TOPIC, {"ticks": [row], "teardown": True}, end_ns)
+            return
         if len(self._status_rows) + len(self._write_rows) >= self.group_events:
             self._write_events(tick)
-        self._tick_rows.append((tick, start_ns, end_ns, STATUS_NAMES[root_status]))
+        self._tick_rows.append(row)
         if time.monotonic() - self._last_flush >= self.flush_interval:
             self.flush()
 

@@ -239,7 +239,9 @@ def _insert_write_rows(con: duckdb.DuckDBPyConnection, run_id: str, rows: list[l
     insert_arrow(con, "blackboard", run_id, table)
 
 
-def _insert_tick_rows(con: duckdb.DuckDBPyConnection, run_id: str, rows: list[list]) -> None:
+def _insert_tick_rows(
+    con: duckdb.DuckDBPyConnection, run_id: str, rows: list[list], teardown: bool = False
+) -> None:
     if not rows:
         return
     columns = list(zip(*rows, strict=True))
@@ -249,6 +251,7 @@ def _insert_tick_rows(con: duckdb.DuckDBPyConnection, run_id: str, rows: list[li
             "start_ns": pa.array(columns[1], pa.int64()),
             "end_ns": pa.array(columns[2], pa.int64()),
             "root_status": pa.array(columns[3], pa.string()),
+            "teardown": pa.array([teardown] * len(rows), pa.bool_()),
         }
     )
     insert_arrow(con, "ticks", run_id, table)
@@ -275,14 +278,13 @@ def load_other_messages(
             message = orjson.loads(payload)
             status.extend(message.get("status", ()))
             writes.extend(message.get("writes", ()))
-        ticks = [
-            row
-            for payload in collected.other_ticks
-            for row in orjson.loads(payload).get("ticks", ())
-        ]
         _insert_status_rows(con, run_id, status)
         _insert_write_rows(con, run_id, writes)
-        _insert_tick_rows(con, run_id, ticks)
+        for payload in collected.other_ticks:  # the teardown's message is one of these
+            message = orjson.loads(payload)
+            _insert_tick_rows(
+                con, run_id, message.get("ticks", ()), bool(message.get("teardown", False))
+            )
     except (ValueError, TypeError, AttributeError, IndexError, duckdb.Error) as error:
         raise RecordingError(
             f"{name}: a message does not follow the btlog format: {type(error).__name__}: {error}"

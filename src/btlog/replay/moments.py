@@ -29,7 +29,8 @@ the reason, e.g. ``moment '99s' is after the end of the run (12.3 s)``.
 from __future__ import annotations
 
 import re
-from collections.abc import Callable
+from bisect import bisect_right
+from collections.abc import Callable, Sequence
 from dataclasses import dataclass
 from datetime import UTC, datetime
 
@@ -100,6 +101,30 @@ class RunExtent:
     count_after_tick: Callable[[int], int]
     time_of: Callable[[int], int]
     started_at_zone: object = UTC
+
+    @classmethod
+    def from_events(
+        cls,
+        times: Sequence[int],
+        ticks: Sequence[int],
+        end_ns: int,
+        last_tick: int,
+        started_at: str | None,
+    ) -> RunExtent:
+        """The extent of a run given its events' ``t_ns`` and ``tick`` in seq order (both
+        never decrease), the end of its last tick and its ``started_at`` metadata: what a
+        live run knows of itself, resolved exactly as the read model resolves it."""
+        started_ns, zone = parse_started_at(started_at)
+        return cls(
+            events=len(times),
+            duration_ns=max(end_ns, times[-1] if times else 0),
+            last_tick=max(last_tick, ticks[-1] if ticks else 0),
+            started_at_ns=started_ns,
+            count_at=lambda t_ns: bisect_right(times, t_ns),
+            count_after_tick=lambda tick: bisect_right(ticks, tick),
+            time_of=lambda count: times[count - 1] if count > 0 else 0,
+            started_at_zone=zone,
+        )
 
 
 def parse_moment(text: str | Moment) -> Moment:
@@ -210,19 +235,24 @@ def _time_since_start(moment: Moment, run: RunExtent) -> int:
                 f"(it lasts {_seconds(run.duration_ns)})"
             )
         return t_ns
-    if run.started_at_ns is None:
+    return wall_offset_ns(moment, run.started_at_ns, run.started_at_zone)
+
+
+def wall_offset_ns(moment: Moment, started_at_ns: int | None, zone: object = UTC) -> int:
+    """A wall-time moment as ns since the run's start (``started_at_ns`` since the epoch,
+    a time without a zone read in ``zone``); MomentError before the start."""
+    if started_at_ns is None:
         raise MomentError(
             f"moment {moment.text!r} is a wall time, but the recording has "
             "no start time (metadata started_at)"
         )
     wall = moment.value
     if moment.naive:
-        wall -= _zone_offset_ns(run.started_at_zone)
-    t_ns = wall - run.started_at_ns
+        wall -= _zone_offset_ns(zone)
+    t_ns = wall - started_at_ns
     if t_ns < 0:
         raise MomentError(
-            f"moment {moment.text!r} is before the start of the run "
-            f"({_iso(run.started_at_ns, run.started_at_zone)})"
+            f"moment {moment.text!r} is before the start of the run ({_iso(started_at_ns, zone)})"
         )
     return t_ns
 

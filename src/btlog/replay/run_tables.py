@@ -165,7 +165,8 @@ def extent_of(con: duckdb.DuckDBPyConnection, run_id: str) -> Extent:
     )
     final = first_row(
         con,
-        "SELECT root_status FROM ticks WHERE run_id = $run_id ORDER BY tick DESC LIMIT 1",
+        "SELECT root_status FROM ticks WHERE run_id = $run_id AND NOT teardown "
+        "ORDER BY tick DESC LIMIT 1",
         {"run_id": run_id},
     )
     last_t = last_t or 0

@@ -17,7 +17,7 @@ import pyarrow as pa
 from btlog.status import STATUS_NAMES
 
 #: The layout of the read model; part of the cache key (bump when a table changes).
-INGEST_VERSION = "2"
+INGEST_VERSION = "3"
 
 SCHEMA = (
     # Status is numbered as BT.CPP numbers it; the ENUM uses the same order.
@@ -33,7 +33,7 @@ SCHEMA = (
     """CREATE TABLE blackboard (run_id VARCHAR, seq BIGINT, t_ns BIGINT, tick BIGINT,
         scope VARCHAR, key VARCHAR, value JSON, type VARCHAR, writer_uid INTEGER)""",
     """CREATE TABLE ticks (run_id VARCHAR, tick BIGINT, start_ns BIGINT, end_ns BIGINT,
-        root_status status)""",
+        root_status status, teardown BOOLEAN DEFAULT false)""",
     """CREATE TABLE mutations (run_id VARCHAR, seq BIGINT, t_ns BIGINT, op VARCHAR,
         parent_uid INTEGER, after_uid INTEGER, inserted_root_uid INTEGER, question VARCHAR)""",
     """CREATE TABLE _mutations (run_id VARCHAR, seq BIGINT, t_ns BIGINT, tick BIGINT,
