@@ -22,7 +22,7 @@ from typing import Any
 
 from btlog import SCHEMA_VERSION, __version__
 from btlog.domains import make_domain
-from btlog.domains.outcomes import FailSpec, Outcomes, OutcomesError
+from btlog.domains.outcomes import FailSpec, Outcomes, OutcomesError, ScriptedLeaf
 from btlog.executor.clock import SimClock, WallClock
 from btlog.executor.engine import Executor
 from btlog.explain.questions import Answer
@@ -140,6 +140,8 @@ class RunResult:
     answers: list[tuple[LiveQuestion, Answer, int]]
     #: One line per live question whose moment lies outside the run (not answered).
     refused: list[str] = field(default_factory=list)
+    #: One line per --fail spec or outcomes entry that never applied.
+    warnings: list[str] = field(default_factory=list)
 
 
 def default_output(tree_path: str, run_id: str) -> Path:
@@ -198,6 +200,11 @@ def execute(
         executor.close(teardown=False)
         raise
     executor.close()
+    activations = {
+        uid: behavior.activations
+        for uid, behavior in executor.behaviors.items()
+        if isinstance(behavior, ScriptedLeaf)
+    }
     return RunResult(
         path,
         run_id,
@@ -206,4 +213,5 @@ def execute(
         executor.seq,
         live.answered if live is not None else [],
         live.refused if live is not None else [],
+        outcomes.unapplied(executor.tree, activations),
     )

@@ -82,15 +82,24 @@ def run(args: Namespace) -> int:
         result = execute(config, args.output, on_answer)
     if args.quiet:
         print(safe(result.path))
-        return 0
-    console.print(f"recording: {safe(result.path)}", highlight=False)
-    final = result.final_status.name
+    else:
+        console.print(f"recording: {safe(result.path)}", highlight=False)
+        console.print(
+            f"events: {result.events}  ticks: {result.ticks}  "
+            f"final status: {result.final_status.name}",
+            highlight=False,
+        )
     if not result.final_status.completed:
-        final += f" (stopped after --max-ticks {args.max_ticks}; the tree was halted)"
-    console.print(
-        f"events: {result.events}  ticks: {result.ticks}  final status: {final}", highlight=False
-    )
-    return 0
+        print(
+            f"btlog run: warning: stopped after --max-ticks {args.max_ticks} with the tree "
+            f"{result.final_status.name}; the tree was halted",
+            file=sys.stderr,
+        )
+    for warning in result.warnings:
+        print(f"btlog run: warning: {safe(warning)}", file=sys.stderr)
+    for refusal in result.refused:
+        print(f"btlog run: {safe(refusal)} (not answered)", file=sys.stderr)
+    return 2 if result.refused else 0
 
 
 # -- questions ---------------------------------------------------------------------------

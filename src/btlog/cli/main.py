@@ -1,14 +1,16 @@
 """The ``btlog`` command line: parsing, dispatch, and the exit-code contract.
 
-Exit codes: 0 ok, 1 a check failed, 2 bad input. Bad input of any kind (unreadable or
-invalid files, bad moments, unknown questions, bad SQL, bad trees) is reported as one
-line on stderr, never a traceback; set ``BTLOG_DEBUG=1`` to see the traceback.
+Exit codes: 0 ok, 1 a check failed, 2 bad input, 3 a bug in btlog. Bad input of any kind
+(unreadable or invalid files, bad moments, unknown questions, bad SQL, bad trees) is
+reported as one line on stderr, never a traceback; any other exception is a bug of btlog,
+reported as one line saying so. ``BTLOG_DEBUG=1`` shows the traceback of either.
 """
 
 from __future__ import annotations
 
 import argparse
 import os
+import re
 import sys
 import traceback
 from collections.abc import Callable, Sequence
@@ -18,7 +20,10 @@ from btlog.cli.limit_flags import add_limit_flags, apply_limit_flags
 from btlog.errors import one_line
 from btlog.render.escape import safe
 
-EXIT_OK, EXIT_CHECK_FAILED, EXIT_BAD_INPUT = 0, 1, 2
+EXIT_OK, EXIT_CHECK_FAILED, EXIT_BAD_INPUT, EXIT_BUG = 0, 1, 2, 3
+#: Options whose value may be a negative moment (``--at -2s``, ``--ask "-2s=…"``).
+MOMENT_OPTIONS = ("--at", "--from", "--to", "--ask")
+_NEGATIVE = re.compile(r"^-[\d.]")
 
 
 class BadInput(Exception):
@@ -247,11 +252,22 @@ def _is_bad_input(error: BaseException) -> bool:
     return isinstance(error, ValueError | OSError | BadInput | duckdb.Error | NodeExecutionError)
 
 
+def join_negative_moments(argv: Sequence[str]) -> list[str]:
+    """``--at -2s`` as ``--at=-2s``: argparse would take ``-2s`` for an option."""
+    joined: list[str] = []
+    for arg in argv:
+        if joined and joined[-1] in MOMENT_OPTIONS and _NEGATIVE.match(arg):
+            joined[-1] = f"{joined[-1]}={arg}"
+        else:
+            joined.append(arg)
+    return joined
+
+
 def main(argv: Sequence[str] | None = None) -> int:
     """Run the command line; returns the exit code."""
     parser = build_parser()
     try:
-        args = parser.parse_args(argv)
+        args = parser.parse_args(join_negative_moments(sys.argv[1:] if argv is None else argv))
     except SystemExit as exit_:
         return int(exit_.code or 0)
     from btlog.cli.cache import cache_dir_of
@@ -268,8 +284,15 @@ def main(argv: Sequence[str] | None = None) -> int:
     except Exception as error:
         if os.environ.get("BTLOG_DEBUG"):
             traceback.print_exc()
-        print(f"btlog {args.command}: {safe(one_line(error))}", file=sys.stderr)
-        return EXIT_BAD_INPUT
+        if _is_bad_input(error):
+            print(f"btlog {args.command}: {safe(one_line(error))}", file=sys.stderr)
+            return EXIT_BAD_INPUT
+        print(
+            f"btlog {args.command}: internal error, a bug in btlog ({type(error).__name__}: "
+            f"{safe(one_line(error))}); BTLOG_DEBUG=1 shows the traceback",
+            file=sys.stderr,
+        )
+        return EXIT_BUG
 
 
 if __name__ == "__main__":

@@ -97,6 +97,10 @@ class Outcomes:
     failures: list[FailSpec] = field(default_factory=list)
     failure_rate: float = 0.0
     source: dict = field(default_factory=dict)
+    #: Where the mapping came from (a file name, or "recorded outcomes"), and the line of
+    #: each key under ``nodes`` when it is a YAML/JSON file.
+    where: str = "outcomes"
+    key_lines: dict[str, int] = field(default_factory=dict)
 
     @classmethod
     def from_mapping(cls, data: Any, where: str = "outcomes") -> Outcomes:
@@ -106,7 +110,7 @@ class Outcomes:
         except documents.DocumentError as error:
             raise OutcomesError(str(error)) from None
         data = data or {}
-        outcomes = cls(source=data)
+        outcomes = cls(source=data, where=where)
         if "default" in data:
             outcomes.default = _parse_entry(data["default"], Outcome())
             outcomes.condition_default = Outcome(outcomes.default.status)
@@ -122,13 +126,50 @@ class Outcomes:
             documents.validate(data, "outcomes", str(path), lines)
         except documents.DocumentError as error:
             raise OutcomesError(str(error)) from None
-        return cls.from_mapping(data, str(path))
+        outcomes = cls.from_mapping(data, str(path))
+        outcomes.key_lines = {
+            path_[1]: line
+            for path_, line in lines.items()
+            if len(path_) == 2 and path_[0] == "nodes"
+        }
+        return outcomes
 
     def check_keys(self, tree: Tree) -> None:
         """Every key and --fail key must match at least one node of the tree."""
-        for key in [*self.scripts, *(f.key for f in self.failures)]:
+        for key in self.scripts:
             if not tree.lookup(key):
-                raise OutcomesError(f"outcomes key {key!r} matches no node of the tree")
+                line = self.key_lines.get(key)
+                where = f"{self.where}:{line}" if line else self.where
+                raise OutcomesError(f"{where}: key {key!r} matches no node of the tree")
+        for spec in self.failures:
+            if not tree.lookup(spec.key):
+                raise OutcomesError(f"--fail {str(spec)!r}: matches no node of the tree")
+
+    def unapplied(self, tree: Tree, activations: dict[int, int]) -> list[str]:
+        """One warning per --fail spec and per outcomes entry that no activation used,
+        given how many times each node (by uid) was activated in the run."""
+        warnings = []
+
+        def ran(key: str) -> tuple[int, str]:
+            nodes = tree.lookup(key)
+            most = max((activations.get(n.uid, 0) for n in nodes), default=0)
+            times = "time" if most == 1 else "times"
+            names = " and ".join(sorted({n.description for n in nodes}))
+            return most, f"{names} ran {most} {times}"
+
+        for spec in self.failures:
+            most, story = ran(spec.key)
+            if most < spec.activation:
+                warnings.append(f'--fail "{spec}" never applied: {story}')
+        for key, entries in self.scripts.items():
+            most, story = ran(key)
+            if most < len(entries):
+                line = self.key_lines.get(key)
+                where = f"{self.where}:{line}" if line else self.where
+                count = len(entries)
+                unused = f"entry {count}" if most + 1 == count else f"entries {most + 1}-{count}"
+                warnings.append(f"{where}: {key!r} {unused} never applied: {story}")
+        return warnings
 
     def plan_for(self, node: Node, tree: Tree) -> list[Outcome]:
         """The per-activation script of a node (the last entry repeats). A condition's
