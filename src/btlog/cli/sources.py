@@ -183,7 +183,7 @@ def export(args: Namespace) -> int:
 def attach(args: Namespace) -> int:
     """``btlog attach tcp://HOST:PORT -o OUT``: record until --duration or Ctrl-C."""
     from btlog.explain.questions import Answer
-    from btlog.runner import LiveQuestion
+    from btlog.live_questions import LiveQuestion
     from btlog.sources.builder import RecordingBuilder
     from btlog.sources.groot2 import AttachOptions
     from btlog.sources.groot2 import attach as record

@@ -12,7 +12,8 @@ from __future__ import annotations
 from collections.abc import Callable
 
 from btlog.explain.questions import Answer, answer
-from btlog.runner import LiveQuestion
+from btlog.live_questions import LiveQuestion
+from btlog.replay.moments import SEQ, TICK, TIME
 from btlog.sources.builder import RecordingBuilder
 from btlog.sources.groot2 import AttachHooks
 from btlog.state import StateProjection
@@ -43,11 +44,12 @@ class LiveAnswers(AttachHooks):
 
     def due(self, question: LiveQuestion, builder: RecordingBuilder, t_ns: int) -> bool:
         """True once the moment WHEN is in the past."""
-        if question.kind == "tick":
-            return builder.tick > question.value
-        if question.kind == "seq":
-            return builder.seq > question.value
-        return t_ns > question.value
+        kind, value = question.moment.kind, question.moment.value
+        if kind == TICK:
+            return builder.tick > value
+        if kind == SEQ:
+            return builder.seq > value
+        return kind == TIME and t_ns > value  # end, -2s, wall times: at the end
 
     def poll(self, builder: RecordingBuilder, t_ns: int) -> None:
         """Answer every question that is due now."""
