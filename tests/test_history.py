@@ -50,7 +50,7 @@ def _ask(path: Path, at: str, question: str) -> str:
 
 
 def test_taxi_pick_up_fails_live_and_post_hoc(tmp_path: Path) -> None:
-    questions = [f"100s={q}" for q in TAXI_PICKUP_FAILS]  # past the end: asked at the end
+    questions = [f"end={q}" for q in TAXI_PICKUP_FAILS]  # asked at the end, as post hoc
     path = tmp_path / "run.mcap"
     result = execute(
         RunConfig(tree=TAXI, domain="taxi", fail=["pick up passenger"], questions=questions), path
