@@ -91,6 +91,7 @@ class Pane {
     this.count = state.count;
     if (!this.pending) this.target = null;
     this.graph.update(state);
+    if (state.current.length) this.graph.follow(state.current[0]);
     this.timeline.setCursor(state.t_ns);
     this.slider.value = state.count;
     const seq = state.count - 1;

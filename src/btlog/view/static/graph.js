@@ -193,9 +193,14 @@ class TreeGraph {
 
   reveal(uid) {
     this.open(uid);
+    this.follow(uid);
+  }
+
+  /** Pan to `uid` when it is drawn but outside the view (subtrees stay as they are). */
+  follow(uid) {
     const target = this.nodes.get(uid);
-    if (!target || !target.visible) return;
     const w = this.box.clientWidth, h = this.box.clientHeight, k = this.zoom.k;
+    if (!target || !target.visible || !w || !h) return;
     const sx = target.x * k + this.zoom.x, sy = target.y * k + this.zoom.y;
     if (sx < 0 || sy < 0 || sx + BOX_W * k > w || sy + BOX_H * k > h) {
       this.zoom.x = w / 2 - (target.x + BOX_W / 2) * k;
