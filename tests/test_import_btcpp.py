@@ -27,7 +27,7 @@ from btlog.tree.loader import load_tree_text
 from btlog.tree.model import CONDITION
 from btlog.tree.registry import NodeType, Registry
 from tests.oracle.random_trees import generate
-from tests.oracle.runner import have_behaviortreepy, run_oracle
+from tests.oracle.runner import have_behaviortreepy, run_oracle, tick_boundaries
 from tests.test_cli import btlog as cli
 from tests.test_differential import btlog_transitions
 
@@ -68,11 +68,6 @@ def _imported(log: Path, out: Path) -> tuple[list[list], object]:
     return rows, recording
 
 
-def _boundaries(transitions: list[list]) -> set[int]:
-    """The indexes of the transitions that start a tick (empty ticks leave no trace)."""
-    return {i for i, row in enumerate(transitions) if i == 0 or row[0] != transitions[i - 1][0]}
-
-
 @needs_btcpp
 def test_imported_filelogger2_equals_btcpp_stream_and_btlog_run(btcpp_logs, tmp_path) -> None:
     assert len(btcpp_logs) >= CASES * 0.9
@@ -84,7 +79,7 @@ def test_imported_filelogger2_equals_btcpp_stream_and_btlog_run(btcpp_logs, tmp_
         assert [r[1:] for r in rows] == [t[1:] for t in btlog_transitions(case)]
         # Ticks are TICK_SLEEP_MS apart, more than the gap: every real tick is found. A
         # process preempted mid-tick on a loaded machine may split a tick in two.
-        inferred, real = _boundaries(rows), _boundaries(theirs)
+        inferred, real = tick_boundaries(rows), tick_boundaries(theirs)
         assert real <= inferred, f"seed {case.seed}: a tick was not found"
         ticks, splits = ticks + len(real), splits + len(inferred - real)
         assert recording.metadata["source"]["format"] == "btcpp-filelog2"

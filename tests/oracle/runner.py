@@ -69,3 +69,9 @@ def run_oracle(case: Any, timeout: float = 20) -> dict[str, Any] | None:
             except ValueError:
                 return None
     return None
+
+
+def tick_boundaries(transitions: list[list[Any]]) -> set[int]:
+    """The indexes of the ``[tick, …]`` rows that start a tick (empty ticks leave no trace
+    in a log of transitions, so logs are compared by where their ticks start)."""
+    return {i for i, row in enumerate(transitions) if i == 0 or row[0] != transitions[i - 1][0]}
