@@ -146,6 +146,7 @@ def test_rerun_replays_live_questions(tmp_path):
 
 def test_rerun_finds_a_moved_projects_tree(tmp_path):
     """Recordings kept in a project find the tree by its recorded relative path."""
+    (tmp_path / "pyproject.toml").write_text("[project]\nname = 'robot'\n", encoding="utf-8")
     (tmp_path / "trees").mkdir()
     (tmp_path / "recordings").mkdir()
     tree = tmp_path / "trees" / "kitting.xml"

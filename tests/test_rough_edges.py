@@ -151,3 +151,134 @@ def test_a_bug_in_btlog_exits_3_with_one_line(tmp_path: Path) -> None:
     assert debug.returncode == 3 and "Traceback" in debug.stderr
     bad = btlog("validate", str(tmp_path / "missing.xml"), cwd=tmp_path)
     assert bad.returncode == 2 and "Traceback" not in bad.stderr
+
+
+RECORDINGS = ROOT / "recordings"
+PARALLEL_TREE = """<root BTCPP_format="4" main_tree_to_execute="Main">
+<BehaviorTree ID="Main"><Parallel name="work" success_count="2" failure_count="1">
+<SubTree ID="go to dock"/><Action ID="beep" name="beep"/></Parallel></BehaviorTree>
+<BehaviorTree ID="go to dock"><Sequence name="go to dock"><Action ID="drive" name="drive"/>
+</Sequence></BehaviorTree></root>"""
+NO_ATTEMPTS = """<root BTCPP_format="4"><BehaviorTree ID="Main"><Sequence name="s">
+<RetryUntilSuccessful name="r"><Action ID="go" name="go"/></RetryUntilSuccessful>
+</Sequence></BehaviorTree></root>"""
+
+
+@pytest.fixture
+def copies(tmp_path: Path) -> Path:
+    """Copies of the project's recordings (their caches stay out of the project)."""
+    for name in ("kitting-look-at-chuck-fails.mcap", "taxi-optimal.mcap", "kitting-ok.mcap"):
+        (tmp_path / name).write_bytes((RECORDINGS / name).read_bytes())
+    return tmp_path
+
+
+def test_under_a_parallel_only_real_subgoals_are_joined(tmp_path: Path) -> None:
+    (tmp_path / "p.xml").write_text(PARALLEL_TREE, encoding="utf-8")
+    run = btlog("run", "p.xml", "--ask", "0.2s=What is your subgoal?", "-o", "p.mcap", cwd=tmp_path)
+    assert run.returncode == 0, run.stderr
+    assert run.stdout.splitlines()[1].strip() == "My subgoal is to go to dock."
+    post = btlog("ask", "p.mcap", "--at", "0.2s", "What is your subgoal?", cwd=tmp_path)
+    assert post.stdout.strip() == "My subgoal is to go to dock."
+
+
+def test_validate_makes_the_checks_run_makes(tmp_path: Path) -> None:
+    (tmp_path / "r.xml").write_text(NO_ATTEMPTS, encoding="utf-8")
+    validated = btlog("validate", "r.xml", cwd=tmp_path)
+    ran = btlog("run", "r.xml", "-o", "r.mcap", cwd=tmp_path)
+    assert validated.returncode == ran.returncode == 2
+    assert "port 'num_attempts' is not set" in validated.stderr
+    assert validated.stderr.replace("validate", "run") == ran.stderr
+    assert not (tmp_path / "r.mcap").exists()
+
+
+@pytest.mark.parametrize(
+    ("moment", "header"),
+    [("seq:33", "at seq:33: seq 33, tick "), ("tick:300", ", tick 300, "), ("end", ": seq 256,")],
+)
+def test_show_headers_name_the_moment_exactly(copies: Path, moment: str, header: str) -> None:
+    shown = btlog("show", "kitting-look-at-chuck-fails.mcap", "--at", moment, cwd=copies)
+    assert shown.returncode == 0, shown.stderr
+    assert header in shown.stdout.splitlines()[0]
+
+
+def test_show_styles_names_plainly_and_statuses_once(copies: Path) -> None:
+    env = {"FORCE_COLOR": "1", "NO_COLOR": ""}
+    environment = {k: v for k, v in os.environ.items() if k != "NO_COLOR"} | {"FORCE_COLOR": "1"}
+    shown = subprocess.run(
+        [sys.executable, "-m", "btlog.cli.main", "show", "kitting-look-at-chuck-fails.mcap"],
+        cwd=copies, env=environment, capture_output=True, text=True, check=False, timeout=60,
+    )  # fmt: skip
+    assert env and shown.returncode == 0, shown.stderr
+    line = next(x for x in shown.stdout.splitlines() if "build a gearbox kit" in x)
+    assert "\x1b[" in line  # coloured
+    assert "\x1b[2mbuild a gearbox kit" not in line and "\x1b[1;2;" not in shown.stdout
+
+
+def test_diff_exits_1_on_divergence_and_0_when_equal(copies: Path) -> None:
+    human = str(ROOT / "trees" / "taxi-human.xml")
+    assert btlog("diff", "taxi-optimal.mcap", human, cwd=copies).returncode == 1
+    same = btlog("diff", "taxi-optimal.mcap", "taxi-optimal.mcap", cwd=copies)
+    assert same.returncode == 0, same.stderr
+
+
+def test_timeline_node_by_type_matches_every_node_of_it(copies: Path) -> None:
+    found = btlog("timeline", "kitting-look-at-chuck-fails.mcap", "--node", "reach", cwd=copies)
+    assert found.returncode == 0, found.stderr
+    for name in ("approach door", "prepare to insert", "back to approach for door"):
+        assert name in found.stdout
+
+
+def test_replay_takes_arrows_and_enter_and_keeps_steps_on_one_screen(copies: Path) -> None:
+    script = "n 5\n\n\x1b[C\x1b[C\n\x1b[D\n\x1b[B\nq\n"
+    replay = subprocess.run(
+        [sys.executable, "-m", "btlog.cli.main", "replay", "kitting-look-at-chuck-fails.mcap",
+         "--plain", "--script", "-"],
+        input=script, cwd=copies, capture_output=True, text=True, check=False, timeout=60,
+        env={**os.environ, "NO_COLOR": "1"},
+    )  # fmt: skip
+    assert replay.returncode == 0, replay.stderr
+    assert "unknown command" not in replay.stdout
+    steps = replay.stdout.split("── event ")[1:]
+    positions = [int(step.split("/")[0]) for step in steps]
+    assert positions == [1, 6, 11, 13, 12, positions[-1]] and positions[-1] > 12
+    assert all(len(step.splitlines()) <= 24 for step in steps)
+    assert "look at chuck" not in steps[1]  # the whole tree is not reprinted
+    assert "move to see chuck #6  IDLE -> RUNNING" in steps[1]  # the events stepped over
+
+
+def test_kitting_conditions_answer_at_once(tmp_path: Path) -> None:
+    (tmp_path / "w.xml").write_text(
+        '<root BTCPP_format="4"><BehaviorTree ID="M"><ReactiveSequence name="watch">'
+        '<Condition ID="gripper ok" name="gripper ok"/><Action ID="move to" name="go" '
+        'place="dock"/></ReactiveSequence></BehaviorTree></root>',
+        encoding="utf-8",
+    )
+    run = btlog("run", "w.xml", "--domain", "kitting", "-o", "w.mcap", cwd=tmp_path)
+    assert run.returncode == 0 and run.stderr == ""
+    assert "ticks: 41  final status: SUCCESS" in run.stdout  # move to: 4 s
+
+
+def test_rerun_uses_the_tree_of_the_recordings_project(tmp_path: Path) -> None:
+    """The recorded path relative to the recording's project comes first (the recorded
+    absolute path exists here too); which file is said, and a changed one warned about."""
+    project = tmp_path / "clone"
+    (project / "recordings").mkdir(parents=True)
+    (project / "trees").mkdir()
+    (project / "pyproject.toml").write_text("[project]\nname = 'clone'\n", encoding="utf-8")
+    tree = (ROOT / "trees" / "kitting.xml").read_text(encoding="utf-8")
+    (project / "trees" / "kitting.xml").write_text(tree + "<!-- edited -->\n", encoding="utf-8")
+    run = project / "recordings" / "kitting-ok.mcap"
+    run.write_bytes((RECORDINGS / "kitting-ok.mcap").read_bytes())
+    checked = btlog("check", str(run), "--rerun", cwd=tmp_path)
+    assert checked.returncode == 0, checked.stdout + checked.stderr
+    used = project / "trees" / "kitting.xml"
+    assert f"with {used} (changed since the recording)" in checked.stdout
+    assert f"re-run with {used}, whose sha256 differs" in checked.stderr
+
+
+def test_recover_prints_a_summary(tmp_path: Path) -> None:
+    data = (RECORDINGS / "kitting-ok.mcap").read_bytes()
+    (tmp_path / "cut.mcap").write_bytes(data[: len(data) // 2])
+    recovered = btlog("recover", "cut.mcap", "-o", "fixed.mcap", cwd=tmp_path)
+    assert recovered.returncode == 0, recovered.stderr
+    assert "RecoveryReport(" not in recovered.stdout and "events" in recovered.stdout

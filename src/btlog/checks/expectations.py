@@ -478,27 +478,35 @@ class RerunReport:
         }
 
 
+def project_of(run_path: str | os.PathLike) -> Path:
+    """The recording's project: the nearest folder at or above the recording that holds a
+    ``pyproject.toml``, else the current directory."""
+    folder = Path(run_path).resolve().parent
+    for base in (folder, *folder.parents):
+        if (base / "pyproject.toml").is_file():
+            return base
+    return Path.cwd()
+
+
 def tree_for_rerun(
     run_path: str | os.PathLike, metadata: dict, tree: str | os.PathLike | None = None
 ) -> str:
-    """The tree file to re-run: ``tree`` if given, else the recorded tree file: its
-    absolute path, then the recorded path from the recording's folder or any folder above
-    it (a project's recordings beside its trees), then from here, then beside it."""
+    """The tree file to re-run: ``tree`` if given, else the recorded tree file as it was
+    given, relative to the recording's project (``project_of``), then its recorded
+    absolute path (the machine that recorded it)."""
     if tree:
         return os.fspath(tree)
     recorded = metadata.get("tree_file") or ""
-    folder = Path(run_path).resolve().parent
-    candidates = [
-        metadata.get("tree_file_abs") or "",
-        *(base / recorded for base in (folder, *folder.parents)),
-        recorded,
-        folder / Path(recorded).name,
-    ]
+    candidates = [project_of(run_path) / recorded] if recorded else []
+    if metadata.get("tree_file_abs"):
+        candidates.append(Path(metadata["tree_file_abs"]))
     for candidate in candidates:
-        if str(candidate) and Path(candidate).is_file():
+        if candidate.is_file():
             return os.fspath(candidate)
     raise RerunError(
-        f"{os.fspath(run_path)}: the recorded tree file {recorded!r} is not found; pass --tree TREE"
+        f"{os.fspath(run_path)}: the recorded tree file {recorded!r} is not found in the "
+        f"recording's project ({project_of(run_path)}) nor at its recorded absolute path; "
+        "pass --tree TREE"
     )
 
 

@@ -12,6 +12,7 @@ any check of any run fails, 0 when all pass, 2 for bad input (one line on stderr
 from __future__ import annotations
 
 import json
+import sys
 from argparse import Namespace
 from pathlib import Path
 
@@ -43,15 +44,17 @@ _STYLES = {
 
 
 def diff(args: Namespace) -> int:
-    """``btlog diff A B``: the divergence of two runs, or of a run and a tree."""
+    """``btlog diff A B``: the divergence of two runs, or of a run and a tree; as diff(1),
+    exit 0 when they are the same and 1 when they diverge."""
     divergence = diff_paths(args.a, args.b)
+    verdict = EXIT_OK if divergence.identical else EXIT_CHECK_FAILED
     if args.json:
         print(json.dumps(to_json(divergence), indent=2))
-        return EXIT_OK
+        return verdict
     console = make_console(args.plain)
     for text, kind in render_lines(divergence):
         console.print(Text(text, style=_STYLES[kind]))
-    return EXIT_OK
+    return verdict
 
 
 def _check_options(args: Namespace) -> Expectations | None:
@@ -126,6 +129,13 @@ def check(args: Namespace) -> int:
     expectations = _check_options(args)
     outcomes = [(path, *_check_one(path, expectations, args)) for path in args.runs]
     failed = [path for path, results, report in outcomes if not _passed(results, report)]
+    for path, _results, report in outcomes:
+        if report is not None and report.tree_changed:
+            print(
+                f"btlog check: warning: {safe(path)}: re-run with {safe(report.tree)}, whose "
+                "sha256 differs from the recorded tree's",
+                file=sys.stderr,
+            )
     if args.html:
         try:
             if failed:

@@ -22,7 +22,9 @@ from btlog.explain.questions import Answer, answer
 from btlog.explain.questions import explain as explain_all
 from btlog.render.escape import safe
 from btlog.render.terminal import blackboard_lines, format_ns, make_console, tree_lines
+from btlog.replay.moments import TICK, parse_moment
 from btlog.runner import RunConfig, execute
+from btlog.state import State
 from btlog.status import Status
 from btlog.tree.loader import load_tree
 
@@ -205,7 +207,7 @@ def _story(args: Namespace) -> int:
 
 def show(args: Namespace) -> int:
     """``btlog show``: the tree with each node's status at a moment."""
-    with _moment(args.run, args.at) as (run, tree, state, _at_ns):
+    with _moment(args.run, args.at) as (run, tree, state, at_ns):
         current = {n.uid for n in current_nodes(tree, state)}
         answers = explain_all(tree, state, run.history()) if args.html else []
     if args.html:
@@ -216,10 +218,7 @@ def show(args: Namespace) -> int:
         print(safe(args.html))
         return 0
     console = make_console(args.plain)
-    console.print(
-        f"at {safe(args.at)}: seq {state.seq}, tick {state.tick}, {format_ns(state.t_ns)}",
-        highlight=False,
-    )
+    console.print(moment_header(args.at, state, at_ns), highlight=False)
     for line in tree_lines(tree, state, current):
         console.print(line)
     if args.blackboard:
@@ -227,6 +226,15 @@ def show(args: Namespace) -> int:
         for line in blackboard_lines(state) or [Text(_no_blackboard(args.run))]:
             console.print(line)
     return 0
+
+
+def moment_header(when: str, state: State, at_ns: int) -> str:
+    """``at WHEN: seq S, tick T, TIME``, naming the moment exactly: S is the last event
+    applied, T the moment's tick (N itself for ``tick:N``), TIME the moment's time."""
+    moment = parse_moment(when)
+    last = f"seq {state.seq - 1}" if state.seq else "before the first event"
+    tick = moment.value if moment.kind == TICK else state.tick
+    return f"at {safe(when)}: {last}, tick {tick}, {format_ns(at_ns)}"
 
 
 def _no_blackboard(path: str) -> str:
@@ -259,13 +267,14 @@ def timeline(args: Namespace) -> int:
         return 0
     console = make_console(args.plain)
     for row in rows:
-        console.print(_timeline_line(row), highlight=False)
+        console.print(timeline_line(row), highlight=False)
     if not rows:
         console.print("(no events match)")
     return 0
 
 
-def _timeline_line(row: dict) -> str:
+def timeline_line(row: dict) -> str:
+    """One event of a timeline on one line (names escaped)."""
     head = f"{row['seq']:>7}  {format_ns(row['t_ns']):>10}  tick {row['tick']:<6}"
     if row["kind"] == "write":
         value = json.dumps(row["value"], default=repr)
@@ -319,8 +328,14 @@ def recover(args: Namespace) -> int:
 
 
 def validate(args: Namespace) -> int:
-    """``btlog validate``: load a tree and report what it holds."""
+    """``btlog validate``: load a tree, build it as ``run`` does (every check a run makes
+    before its first tick), and report what it holds."""
     tree = load_tree(args.tree)
+    from btlog.domains import make_domain
+    from btlog.domains.outcomes import Outcomes
+    from btlog.executor.engine import Executor
+
+    Executor(tree, leaf_factory=make_domain("scripted").leaf_factory(tree, Outcomes()))
     kinds = Counter(n.kind for n in tree)
     subtrees = [n for n in tree if n.kind == "subtree"]
     leaf_types = sorted({n.type for n in tree if n.is_execution})

@@ -141,7 +141,9 @@ def build_parser() -> argparse.ArgumentParser:
 
     timeline = commands.add_parser("timeline", help="the events of a run")
     timeline.add_argument("run", metavar="RUN")
-    timeline.add_argument("--node", metavar="N", help="name, type, path or uid")
+    timeline.add_argument(
+        "--node", metavar="N", help="name, path or uid; a type: every node of that type"
+    )
     timeline.add_argument("--status", metavar="S", help="only transitions to this status")
     timeline.add_argument("--from", dest="start", metavar="W", help="from this moment")
     timeline.add_argument("--to", dest="end", metavar="W", help="up to this moment")

@@ -274,7 +274,13 @@ def scripted_leaf_factory(
 
     def factory(node: Node, runtime: Runtime, board: Blackboard) -> ScriptedLeaf:
         plan = outcomes.plan_for(node, tree)
-        if durations is not None and plan[0] in (outcomes.default, outcomes.condition_default):
+        # A domain's durations are for actions: its conditions answer at once (BT.CPP
+        # conditions never return RUNNING), unless the outcomes give one a duration.
+        if (
+            durations is not None
+            and node.kind != CONDITION
+            and plan[0] in (outcomes.default, outcomes.condition_default)
+        ):
             domain_default = durations(node)
             if domain_default is not None and not _has_explicit_script(node, tree, outcomes):
                 plan = [domain_default]

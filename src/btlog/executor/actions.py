@@ -174,6 +174,8 @@ class UnsetBlackboard(SyncAction):
 class Sleep(StatefulAction):
     """RUNNING for ``msec`` milliseconds of the executor's clock, then SUCCESS."""
 
+    required_ports = ("msec",)
+
     def on_start(self) -> Status:
         msec = self.get_input("msec", "int")
         if msec <= 0:

@@ -93,6 +93,8 @@ class Behavior:
 
     #: Port declarations of the type, used by user leaves (name → PortSpec).
     ports: ClassVar[dict] = {}
+    #: Ports the node cannot run without (checked when the executor is built).
+    required_ports: ClassVar[tuple[str, ...]] = ()
 
     def __init__(self, node: Node, runtime: Runtime, board: Blackboard) -> None:
         self.node = node
@@ -231,6 +233,12 @@ class Behavior:
             cached = (key, raw)
             self._port_cache[name] = cached
         return cached
+
+    def check_ports(self) -> None:
+        """NodeExecutionError (naming file and line) when a required port is not set."""
+        for name in self.required_ports:
+            if not self.has_port(name):
+                raise NodeExecutionError(self.node, f"port {name!r} is not set")
 
     def has_port(self, name: str) -> bool:
         """True when the port is set in the XML or has a declared default."""

@@ -115,6 +115,7 @@ class Repeat(_Loop):
     """Run the child ``num_cycles`` times (-1: forever) while it succeeds; FAILURE fails."""
 
     limit_port = "num_cycles"
+    required_ports = ("num_cycles",)
     again = SUCCESS
 
 
@@ -123,6 +124,7 @@ class RetryUntilSuccessful(_Loop):
     succeeds. ``count`` is the number of failed attempts of the current run."""
 
     limit_port = "num_attempts"
+    required_ports = ("num_attempts",)
     again = FAILURE
 
 
@@ -188,6 +190,8 @@ class _Timed(DecoratorBehavior):
 class Delay(_Timed):
     """RUNNING for ``delay_msec`` (on the executor's clock), then tick the child."""
 
+    required_ports = ("delay_msec",)
+
     def tick(self) -> Status:
         clock = self.runtime.clock
         if self.deadline is None:
@@ -204,6 +208,8 @@ class Delay(_Timed):
 
 class Timeout(_Timed):
     """Tick the child; if it is still running ``msec`` after the start, halt it and fail."""
+
+    required_ports = ("msec",)
 
     def tick(self) -> Status:
         clock = self.runtime.clock

@@ -91,6 +91,7 @@ class Executor:
         else:
             behavior = cls(node, self.runtime, board)
             behavior.children = [self._build(child, board) for child in node.children]
+        behavior.check_ports()
         self.behaviors[node.uid] = behavior
         return behavior
 

@@ -36,8 +36,11 @@ def join_answers(texts: list[str]) -> str:
 
 
 def per_node(nodes: list[Node], render: Callable[[Node], str], empty: str) -> str:
-    """``render`` for each current node, joined; ``empty`` when there is none."""
-    return join_answers([render(n) for n in nodes]) if nodes else empty
+    """``render`` for each current node, joined; ``empty`` (the refusal) when there is
+    none. Only real answers are joined: a node whose answer is the refusal itself (a
+    branch of a Parallel outside any subgoal) is left out, never spliced in."""
+    texts = [text for text in (render(n) for n in nodes) if text != empty]
+    return join_answers(texts) if texts else empty
 
 
 def doing(node: Node) -> str:

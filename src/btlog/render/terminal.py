@@ -67,7 +67,8 @@ def tree_lines(tree: Tree, state: State | None, current: Iterable[int] = ()) -> 
 
     def visit(node: Node, prefix: str, last: bool, root: bool) -> None:
         status = state.status_of(node.uid) if state is not None else IDLE
-        line = Text(prefix + ("" if root else ("└── " if last else "├── ")), style="dim")
+        line = Text()  # only the box characters are dim, not the whole line
+        line.append(prefix + ("" if root else ("└── " if last else "├── ")), style="dim")
         line.append_text(node_label(node, status, node.uid in marked))
         lines.append(line)
         child_prefix = prefix if root else prefix + ("    " if last else "│   ")

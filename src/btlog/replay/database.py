@@ -621,7 +621,8 @@ class Run:
             if int(node) in tree.nodes:
                 return [int(node)]
             raise ReplayError(f"run {self.run_id} has no node with uid {node}")
-        found = tree.lookup(str(node))
+        # a path, a name, a nameless node's type; else a type names every node of it
+        found = tree.lookup(str(node)) or [n for n in tree if n.type == node]
         if not found:
             raise ReplayError(
                 f"no node of run {self.run_id} matches {node!r} "
