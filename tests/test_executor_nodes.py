@@ -2229,10 +2229,10 @@ def test_bad_port_value_at_run_time_names_the_node(setup: str, problem: str) -> 
 
 
 def test_missing_required_port_names_the_node() -> None:
-    """A port without value or default raises NodeExecutionError naming the node."""
-    _, executor, _ = build(xml('<Repeat name="r"><AlwaysSuccess name="a"/></Repeat>'))
+    """A required port without value or default is refused when the executor is built
+    (before any tick: ``btlog validate`` finds it too), naming the node."""
     with pytest.raises(NodeExecutionError, match=r"node 'r'.*'num_cycles' is not set"):
-        executor.tick()
+        build(xml('<Repeat name="r"><AlwaysSuccess name="a"/></Repeat>'))
 
 
 def test_parallel_with_fewer_children_than_its_threshold_raises() -> None:
