@@ -49,12 +49,16 @@ def _ask(path: Path, at: str, question: str) -> str:
         return answer(tree, state, question, run.history(), moment.t_ns).text
 
 
-def test_taxi_pick_up_fails_live_and_post_hoc(tmp_path: Path) -> None:
+@pytest.mark.parametrize(
+    "tree_file", ["trees/taxi.xml", "paper/taxi-domain-tree.xml"], indirect=True
+)
+def test_taxi_pick_up_fails_live_and_post_hoc(tmp_path: Path, tree_file: Path) -> None:
     questions = [f"end={q}" for q in TAXI_PICKUP_FAILS]  # asked at the end, as post hoc
     path = tmp_path / "run.mcap"
-    result = execute(
-        RunConfig(tree=TAXI, domain="taxi", fail=["pick up passenger"], questions=questions), path
+    config = RunConfig(
+        tree=str(tree_file), domain="taxi", fail=["pick up passenger"], questions=questions
     )
+    result = execute(config, path)
     assert result.final_status.name == "FAILURE"
     live = {q.question: a.text for q, a, _ in result.answers}
     assert live == TAXI_PICKUP_FAILS
@@ -62,12 +66,14 @@ def test_taxi_pick_up_fails_live_and_post_hoc(tmp_path: Path) -> None:
         assert _ask(path, "end", question) == expected
 
 
-def test_kitting_insertion_fails_through_every_retry(tmp_path: Path) -> None:
+@pytest.mark.parametrize(
+    "tree_file", ["trees/kitting.xml", "paper/kitting-tree.xml"], indirect=True
+)
+def test_kitting_insertion_fails_through_every_retry(tmp_path: Path, tree_file: Path) -> None:
     """The robot falls back to asking for help and the run succeeds: at the end Q6 tells
     the last failure Algorithm 7 explained, with its time."""
-    path = _record(
-        tmp_path, KITTING, "kitting", outcomes={"nodes": {"trial and error insert": ["FAILURE"]}}
-    )
+    outcomes = {"nodes": {"trial and error insert": ["FAILURE"]}}
+    path = _record(tmp_path, str(tree_file), "kitting", outcomes=outcomes)
     assert _ask(path, "end", "What went wrong?") == (
         "At 43.700 s: I could not go insert large gear because I was unable to insert "
         "large gear as trial and error insert failed."
@@ -93,8 +99,11 @@ def test_nothing_went_wrong_only_when_nothing_failed(tmp_path: Path) -> None:
     assert _ask(path, "end", "Why didn't you drop off passenger?") == "I did drop off passenger."
 
 
-def test_what_will_you_do_next_kitting(tmp_path: Path) -> None:
-    path = _record(tmp_path, KITTING, "kitting", max_ticks=60)
+@pytest.mark.parametrize(
+    "tree_file", ["trees/kitting.xml", "paper/kitting-tree.xml"], indirect=True
+)
+def test_what_will_you_do_next_kitting(tmp_path: Path, tree_file: Path) -> None:
+    path = _record(tmp_path, str(tree_file), "kitting", max_ticks=60)
     with open_runs(path, cache=False) as database:
         run = database.run(str(path))
         (first,) = [e for e in run.timeline(node="move to see chuck", status="RUNNING")][:1]

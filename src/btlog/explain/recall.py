@@ -29,7 +29,7 @@ def _fold(text: str) -> str:
 
 
 def find_nodes(tree: Tree, text: str) -> list[Node]:
-    """The nodes ``text`` names, outermost first: by path, else by name, else by type
+    """The nodes ``text`` names, outermost first: by path or name, else by type
     (nameless nodes first)."""
     wanted = _fold(text.strip().strip("\"'“”‘’"))
     groups: dict[int, list[tuple[int, int, Node]]] = {}
@@ -37,9 +37,7 @@ def find_nodes(tree: Tree, text: str) -> list[Node]:
         name = _fold(node.name)
         if wanted.startswith("the ") and name == wanted[4:]:
             name = wanted
-        if node.path == text or _fold(node.path) == wanted:
-            rank = 0
-        elif name == wanted:
+        if node.path == text or _fold(node.path) == wanted or name == wanted:
             rank = 1
         elif _fold(node.type) == wanted:
             rank = 2 if not node.name else 3
