@@ -149,6 +149,11 @@ def main() -> None:
                 f"btlog ask, warm, wall: max {max(wall.values()):.2f} s, "
                 f"median {statistics.median(wall.values()):.2f} s (target < 1 s)"
             )
+            base = wall["What is your goal?"]  # no history read: start-up and opening only
+            print(
+                f"same run, 'What is your goal?' (no history): {base:.2f} s; the slowest "
+                f"question costs {max(wall.values()) / base:.2f}x that"
+            )
 
 
 if __name__ == "__main__":
