@@ -1,10 +1,14 @@
 """Snapshots: the state every K events, so that any moment costs one row and a short fold.
 
-``build_snapshots`` folds the whole run once with ``StateProjection`` (the only fold),
-storing every ``snapshot_every`` events the state at that point *and* the block of
-events up to the next snapshot (compressed). The state at any moment is then one row
-plus a fold of at most ``snapshot_every`` events (``btlog.replay.database``). Building
-them runs every event through Python once: the dominant cost of a long run.
+``build_snapshots`` stores, every ``snapshot_every`` events, the state before that event,
+computed as SQL over the tables (``SNAPSHOTS_SQL``): each transition holds until the next
+one of its node (``lead(seq)``) and is repeated over the snapshot boundaries it spans
+(``unnest(range(...))``); blackboard entries the same by (scope, key). Only the retry
+counts, which depend on the tree's shape, are folded by ``StateProjection`` — over the
+few events that change them. The projection stays the definition of the state: a
+property test keeps the SQL snapshots equal to its fold. The state at any moment is one
+snapshot row plus a fold of the at most ``snapshot_every`` events after it, read from
+the tables (``fetch_events``; ``btlog.replay.database``).
 """
 
 from __future__ import annotations
@@ -16,14 +20,12 @@ from typing import Any, cast
 import duckdb
 import orjson
 import pyarrow as pa
-import zstandard
 
 from btlog.events import BlackboardWrite, TreeMutation
 from btlog.record import format as fmt
-from btlog.replay.tables import insert_arrow
-from btlog.state import State, StateProjection
+from btlog.state import RECOVERY_TYPE, RETRY_TYPE, StateProjection
 from btlog.status import Status
-from btlog.tree.model import Tree
+from btlog.tree.model import EXECUTION_KINDS, Tree
 
 #: Events between two snapshots. ``state_at`` reads one snapshot row and decodes and
 #: folds at most this many events (~2.5 µs each, all told), on top of a fixed ~2.5 ms
@@ -54,7 +56,6 @@ class EventBatch:
     writes: list[BlackboardWrite]
     mutations: list[TreeMutation] = field(default_factory=list)
     #: seqs of the writes whose value is longer than ``INLINE_VALUE_BYTES`` as JSON
-    large: set[int] = field(default_factory=set)
 
     def __post_init__(self) -> None:
         writes = cast(list[BlackboardWrite | TreeMutation], self.writes)
@@ -86,16 +87,6 @@ class EventBatch:
         for event in others[k:last]:
             _apply_other(projection, event)
 
-    def note_large(self, origins: dict[tuple[str, str], int], lo: int, hi: int) -> None:
-        """Update ``origins`` ((scope, key) → seq of the write that set a large value)
-        with this batch's writes with ``lo <= seq < hi``."""
-        for write in self.writes:
-            if lo <= write.seq < hi:
-                if write.seq in self.large:
-                    origins[(write.scope, write.key)] = write.seq
-                else:
-                    origins.pop((write.scope, write.key), None)
-
     def bound_at_most(self, attribute: str, limit: int) -> int | None:
         """One past the last seq of the batch whose ``t_ns`` (or ``tick``) is at most
         ``limit`` (None if no event of the batch is). Both never decrease along seq."""
@@ -123,28 +114,6 @@ class EventBatch:
             if found is None or event.seq < found[0]:
                 found = (event.seq, event.t_ns, event.tick)
         return None if found is None else found[1:]
-
-    def block(self, lo: int, hi: int) -> bytes:
-        """The status changes and writes with ``lo <= seq < hi``, compressed (mutations
-        are kept apart, in ``_mutations``)."""
-        i, j = bisect_left(self.seq, lo), bisect_left(self.seq, hi)
-        write_seqs = [w.seq for w in self.writes] if self.mutations else self._other_seqs
-        writes = [
-            list(w) for w in self.writes[bisect_left(write_seqs, lo) : bisect_left(write_seqs, hi)]
-        ]
-        columns = [
-            c[i:j] for c in (self.seq, self.t_ns, self.tick, self.uid, self.prev, self.status)
-        ]
-        data = orjson.dumps({"status": columns, "writes": writes}, default=repr)
-        return zstandard.ZstdCompressor(level=1).compress(data)
-
-    @classmethod
-    def from_block(cls, data: bytes, mutations: list[TreeMutation]) -> EventBatch:
-        """The batch of a ``block``, with the given mutations of its range."""
-        message = orjson.loads(zstandard.ZstdDecompressor().decompress(data))
-        writes = [BlackboardWrite(*row) for row in message["writes"]]
-        seq, t_ns, tick, uid, prev, status = message["status"]
-        return cls(seq, t_ns, tick, uid, prev, status, writes, mutations)
 
 
 def fetch_events(
@@ -178,10 +147,9 @@ def fetch_events(
         )
         for seq, t, tick, scope, key, value, kind, writer in rows
     ]
-    large = {row[0] for row in rows if row[5] is not None and len(row[5]) > INLINE_VALUE_BYTES}
     seq, t_ns, tick, uid, prev, status = columns
     inside = [m for m in mutations if lo <= m.seq < hi]
-    return EventBatch(seq, t_ns, tick, uid, prev, status, writes, inside, large)
+    return EventBatch(seq, t_ns, tick, uid, prev, status, writes, inside)
 
 
 def _seq_of(event: BlackboardWrite | TreeMutation) -> int:
@@ -209,54 +177,170 @@ def load_mutations(
 def build_snapshots(
     con: duckdb.DuckDBPyConnection, run_id: str, tree: Tree, events: int, every: int
 ) -> int:
-    """Fold the whole run once. Every ``every`` events (from seq 0) store a row in
-    ``_snapshots``: the state *before* that event, and the block of the next ``every``
-    events (so one row gives any state up to the next snapshot). Returns the row count."""
+    """Store a row in ``_snapshots`` every ``every`` events (from seq 0): the state
+    *before* that event. Built as SQL over the tables (``SNAPSHOTS_SQL``), but for the
+    retry counts, folded by ``StateProjection`` over the few events that change them.
+    Returns the row count."""
     mutations = load_mutations(con, run_id)
-    projection = StateProjection(tree)
-    batch_size = max(every, FOLD_BATCH // every * every)
-    rows: list[tuple] = []
-    origins: dict[tuple[str, str], int] = {}
-    for lo in range(0, events, batch_size):
-        hi = min(lo + batch_size, events)
-        batch = fetch_events(con, run_id, lo, hi, mutations)
-        for start in range(lo, hi, every):
-            stop = min(start + every, hi)
-            first, block = batch.first_keys(start, stop), batch.block(start, stop)
-            rows.append(_snapshot_row(projection.state, origins, start, first, block))
-            batch.fold(projection, start, stop)
-            batch.note_large(origins, start, stop)
-    if events % every == 0:
-        empty = EventBatch([], [], [], [], [], [], []).block(0, 0)
-        rows.append(_snapshot_row(projection.state, origins, events, None, empty))
-    _insert_snapshots(con, run_id, rows)
-    return len(rows)
+    final = StateProjection(tree)
+    for mutation in mutations:
+        final.on_mutation(mutation)
+    nodes = list(final.tree)
+    execution = [n.uid for n in nodes if n.kind in EXECUTION_KINDS]
+    retries = [n.uid for n in nodes if n.type in (RETRY_TYPE, RECOVERY_TYPE)]
+    attempts = _retry_attempts(con, run_id, tree, mutations, retries, events, every)
+    view = "_btlog_retry_attempts"
+    con.register(view, attempts)
+    try:
+        params = {
+            "run_id": run_id,
+            "k": every,
+            "n": events,
+            "execution": execution,
+            "large": INLINE_VALUE_BYTES,
+        }
+        con.execute(f"INSERT INTO _snapshots {SNAPSHOTS_SQL.format(retry_view=view)}", params)
+    finally:
+        con.unregister(view)
+    return events // every + 1
 
 
-def _snapshot_row(
-    state: State,
-    origins: dict[tuple[str, str], int],
-    seq: int,
-    first: tuple[int, int] | None,
-    block: bytes,
-) -> tuple:
-    first_t, first_tick = (None, None) if first is None else first
-    return (seq, state.t_ns, state.tick, first_t, first_tick, snapshot_json(state, origins), block)
+def _spans(name: str, where: str, partition: str, columns: str) -> str:
+    """A CTE ``name``: each row of ``transitions`` matching ``where``, repeated for every
+    snapshot boundary ``b`` (a multiple of $k, at most $n) it is the latest row of its
+    ``partition`` before: from the first boundary after it up to its successor's seq."""
+    return f"""{name} AS (
+        SELECT unnest(range(seq // $k + 1, coalesce(nxt, $n) // $k + 1)) * $k AS b, {columns}
+        FROM (SELECT *, lead(seq) OVER (PARTITION BY {partition} ORDER BY seq) AS nxt
+              FROM transitions WHERE run_id = $run_id AND {where}))"""
 
 
-def snapshot_json(state: State, origins: dict[tuple[str, str], int]) -> str:
-    """The state as stored in a snapshot row: ``State.to_json`` with each large value
-    (``origins``: (scope, key) → seq of the write that set it) left out — its place kept
-    with null — and named in ``blackboard_refs`` by that seq instead."""
-    data = state.to_json()
-    if origins:
-        blackboard = {scope: dict(entries) for scope, entries in state.blackboard.items()}
-        refs: dict[str, dict[str, int]] = {}
-        for (scope, key), seq in origins.items():
-            blackboard[scope][key] = None
-            refs.setdefault(scope, {})[key] = seq
-        data["blackboard"], data["blackboard_refs"] = blackboard, refs
-    return orjson.dumps(data, default=repr).decode()
+#: The snapshot rows: the state before each boundary ``b`` as ``State.to_json`` writes it
+#: (large blackboard values named by seq in ``blackboard_refs``, see ``snapshot_json``).
+SNAPSHOTS_SQL = (
+    "WITH "
+    + ",\n".join(
+        (
+            _spans("status_at", "true", "uid", "uid, enum_code(status) AS v"),
+            _spans("activation_at", "prev_status = 'IDLE'", "uid", "uid, seq AS v"),
+            _spans("failure_at", "status = 'FAILURE'", "uid", "uid, seq AS v"),
+            _spans(
+                "leaf_at", "status <> 'IDLE' AND list_contains($execution, uid)", "run_id", "uid"
+            ),
+        )
+    )
+    + """,
+    writes AS (
+        SELECT unnest(range(seq // $k + 1, coalesce(nxt, $n) // $k + 1)) * $k AS b,
+            scope, key, seq, type, value, length(value::VARCHAR) > $large AS big
+        FROM (SELECT *, lead(seq) OVER (PARTITION BY scope, key ORDER BY seq) AS nxt
+              FROM blackboard WHERE run_id = $run_id)),
+    scopes AS (SELECT DISTINCT b, scope FROM writes),
+    entries AS (
+        SELECT b, scope, json_group_object(key, CASE WHEN big THEN NULL ELSE value END) AS obj
+        FROM writes WHERE type <> 'unset' GROUP BY b, scope),
+    scope_refs AS (
+        SELECT b, scope, json_group_object(key, seq) AS obj
+        FROM writes WHERE type <> 'unset' AND big GROUP BY b, scope),
+    boards AS (
+        SELECT b, json_group_object(scope, coalesce(obj, '{{}}'::JSON)) AS blackboard
+        FROM scopes LEFT JOIN entries USING (b, scope) GROUP BY b),
+    refs AS (SELECT b, json_group_object(scope, obj) AS refs FROM scope_refs GROUP BY b),
+    maps AS (
+        SELECT b, 'status' AS field, json_group_object(uid::VARCHAR, v) AS value
+        FROM status_at GROUP BY b
+        UNION ALL SELECT b, 'activation', json_group_object(uid::VARCHAR, v)
+        FROM activation_at GROUP BY b
+        UNION ALL SELECT b, 'last_failure', json_group_object(uid::VARCHAR, v)
+        FROM failure_at GROUP BY b),
+    every_event AS (
+        SELECT seq, t_ns, tick FROM transitions WHERE run_id = $run_id
+        UNION ALL SELECT seq, t_ns, tick FROM blackboard WHERE run_id = $run_id
+        UNION ALL SELECT seq, t_ns, tick FROM _mutations WHERE run_id = $run_id),
+    bounds AS (SELECT unnest(range(0, $n // $k + 1)) * $k AS b),
+    last_in AS (
+        SELECT (seq // $k + 1) * $k AS b, max(seq) + 1 AS seq, arg_max(t_ns, seq) AS t_ns,
+            arg_max(tick, seq) AS tick
+        FROM every_event GROUP BY ALL),
+    last_event AS (
+        SELECT b, last_value(seq IGNORE NULLS) OVER upto AS seq,
+            last_value(t_ns IGNORE NULLS) OVER upto AS t_ns,
+            last_value(tick IGNORE NULLS) OVER upto AS tick
+        FROM bounds LEFT JOIN last_in USING (b)
+        WINDOW upto AS (ORDER BY b ROWS BETWEEN UNBOUNDED PRECEDING AND CURRENT ROW)),
+    first_event AS (
+        SELECT seq // $k * $k AS b, arg_min(t_ns, seq) AS t_ns, arg_min(tick, seq) AS tick
+        FROM every_event GROUP BY ALL)
+    SELECT $run_id, bounds.b, coalesce(l.t_ns, 0), coalesce(l.tick, 0), f.t_ns, f.tick,
+        json_object(
+            'seq', coalesce(l.seq, 0), 't_ns', coalesce(l.t_ns, 0),
+            'tick', coalesce(l.tick, 0),
+            'status', coalesce(s.value, '{{}}'::JSON),
+            'activation', coalesce(a.value, '{{}}'::JSON),
+            'last_failure', coalesce(fl.value, '{{}}'::JSON),
+            'retry_attempts', coalesce(r.attempts, '{{}}')::JSON,
+            'last_leaf', leaf.uid,
+            'blackboard', coalesce(bb.blackboard, '{{}}'::JSON),
+            'blackboard_refs', rf.refs)
+    FROM bounds
+    LEFT JOIN last_event l USING (b)
+    LEFT JOIN first_event f USING (b)
+    LEFT JOIN maps s ON s.b = bounds.b AND s.field = 'status'
+    LEFT JOIN maps a ON a.b = bounds.b AND a.field = 'activation'
+    LEFT JOIN maps fl ON fl.b = bounds.b AND fl.field = 'last_failure'
+    LEFT JOIN {retry_view} r ON r.b = bounds.b
+    LEFT JOIN leaf_at leaf ON leaf.b = bounds.b
+    LEFT JOIN boards bb ON bb.b = bounds.b
+    LEFT JOIN refs rf ON rf.b = bounds.b
+    ORDER BY bounds.b"""
+)
+
+
+def _retry_attempts(
+    con: duckdb.DuckDBPyConnection,
+    run_id: str,
+    tree: Tree,
+    mutations: list[TreeMutation],
+    retries: list[int],
+    events: int,
+    every: int,
+) -> pa.Table:
+    """``State.retry_attempts`` at each boundary where it is not empty, as (b, JSON): the
+    projection folded over the only events that change it — failures, the retry nodes'
+    own changes, and the mutations (which may add retries)."""
+    rows = con.execute(
+        """SELECT seq, t_ns, tick, uid, enum_code(prev_status), enum_code(status)
+        FROM transitions WHERE run_id = $run_id
+            AND (status = 'FAILURE' OR list_contains($retries, uid)) ORDER BY seq""",
+        {"run_id": run_id, "retries": retries},
+    ).fetchall()
+    projection, codes = StateProjection(tree), _STATUS_BY_CODE
+    attempts = projection.state.retry_attempts
+    pending = iter(mutations)
+    mutation = next(pending, None)
+    bounds: list[int] = []
+    texts: list[str] = []
+
+    def hold(after: int, upto: int) -> None:
+        """The counts after event ``after`` hold at the boundaries in (after, upto]."""
+        if attempts:
+            text = orjson.dumps({str(k): v for k, v in attempts.items()}).decode()
+            for b in range((after // every + 1) * every, upto // every * every + 1, every):
+                bounds.append(b)
+                texts.append(text)
+
+    last: int | None = None
+    for seq, t_ns, tick, uid, prev, status in rows:
+        if last is not None:
+            hold(last, seq)
+        while mutation is not None and mutation.seq < seq:
+            projection.on_mutation(mutation)
+            mutation = next(pending, None)
+        projection.on_status(seq, t_ns, tick, uid, codes[prev], codes[status])
+        last = seq
+    if last is not None:
+        hold(last, events)
+    return pa.table({"b": pa.array(bounds, pa.int64()), "attempts": pa.array(texts, pa.string())})
 
 
 def load_snapshot(
@@ -278,11 +362,3 @@ def load_snapshot(
             for key, seq in entries.items():
                 data["blackboard"][scope][key] = values[seq]
     return data
-
-
-def _insert_snapshots(con: duckdb.DuckDBPyConnection, run_id: str, rows: list[tuple]) -> None:
-    names = ("seq", "t_ns", "tick", "first_t_ns", "first_tick", "state", "events")
-    types = (pa.int64(), pa.int64(), pa.int64(), pa.int64(), pa.int64(), pa.string(), pa.binary())
-    columns = list(zip(*rows, strict=True))
-    table = pa.table({n: pa.array(c, t) for n, c, t in zip(names, columns, types, strict=True)})
-    insert_arrow(con, "_snapshots", run_id, table)

@@ -1,0 +1,62 @@
+"""The snapshots built as SQL over the tables equal the ``StateProjection`` fold (issue 16).
+
+The projection is the single definition of the state: for random outcomes (failures,
+retries, blackboard writes, a tree mutation at a random tick) and a random snapshot
+interval K, every stored snapshot — the state before event b, b a multiple of K — read
+back as a ``State`` equals the live projection's state after b events, derived state
+(activations, last failures, retry attempts, the last leaf) included.
+"""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+from hypothesis import given
+from hypothesis import strategies as st
+
+from btlog.replay.database import open_runs
+from btlog.replay.snapshots import load_snapshot
+from btlog.state import State
+from tests.test_replay import DEFAULT, KITTING, PROPERTY, canonical, record, scripts_for
+
+
+def assert_snapshots_equal_the_fold(path: Path, states: list[dict], every: int) -> list[dict]:
+    """Every snapshot of ``path`` at interval ``every`` equals the live state after as
+    many events; returns the snapshots' states."""
+    with open_runs(path, cache=False, snapshot_every=every) as database:
+        run = database.run()
+        rows = database.con.execute("SELECT seq, state FROM run0._snapshots ORDER BY seq")
+        found = []
+        for seq, text in rows.fetchall():
+            state = canonical(
+                State.from_json(load_snapshot(database.con, run.stored_id, text, "run0."))
+            )
+            expected = canonical(State()) if seq == 0 else states[seq - 1]
+            assert state == expected, f"snapshot before event {seq}"
+            found.append(state)
+    assert len(found) == len(states) // every + 1
+    return found
+
+
+@PROPERTY
+@given(
+    scripts=scripts_for(KITTING),
+    every=st.integers(1, 9),
+    mutate_at=st.one_of(st.none(), st.integers(2, 40)),
+)
+def test_sql_snapshots_equal_the_projection_fold(
+    tmp_path_factory, scripts: dict, every: int, mutate_at: int | None
+) -> None:
+    path: Path = tmp_path_factory.mktemp("snap") / "run.mcap"
+    outcomes = {"default": {"status": "SUCCESS", "ticks": 1}, "nodes": scripts}
+    live = record(path, KITTING, outcomes, max_ticks=60, mutate_at=mutate_at)
+    assert_snapshots_equal_the_fold(path, live.states, every)
+
+
+def test_sql_snapshots_hold_retry_attempts_and_failures(tmp_path: Path) -> None:
+    path = tmp_path / "retry.mcap"
+    scripts = {"trial and error insert": ["FAILURE", "FAILURE", "SUCCESS"]}
+    live = record(path, KITTING, {"default": DEFAULT, "nodes": scripts}, max_ticks=40)
+    found = assert_snapshots_equal_the_fold(path, live.states, 1)
+    assert any(state["retry_attempts"] for state in found)
+    assert any(state["last_failure"] for state in found)
