@@ -187,8 +187,12 @@ def build_snapshots(
         final.on_mutation(mutation)
     nodes = list(final.tree)
     execution = [n.uid for n in nodes if n.kind in EXECUTION_KINDS]
-    retries = [n.uid for n in nodes if n.type in (RETRY_TYPE, RECOVERY_TYPE)]
-    attempts = _retry_attempts(con, run_id, tree, mutations, retries, events, every)
+    retries = [n for n in nodes if n.type in (RETRY_TYPE, RECOVERY_TYPE)]
+    counted = (
+        [n.uid for n in retries],
+        [child.uid for n in retries for child in n.children],
+    )
+    attempts = _retry_attempts(con, run_id, tree, mutations, counted, events, every)
     view = "_btlog_retry_attempts"
     con.register(view, attempts)
     try:
@@ -212,7 +216,8 @@ def _spans(name: str, where: str, partition: str, columns: str) -> str:
     return f"""{name} AS (
         SELECT unnest(range(seq // $k + 1, coalesce(nxt, $n) // $k + 1)) * $k AS b, {columns}
         FROM (SELECT *, lead(seq) OVER (PARTITION BY {partition} ORDER BY seq) AS nxt
-              FROM transitions WHERE run_id = $run_id AND {where}))"""
+              FROM transitions WHERE run_id = $run_id AND {where})
+        WHERE coalesce(nxt, $n) // $k > seq // $k)"""
 
 
 #: The snapshot rows: the state before each boundary ``b`` as ``State.to_json`` writes it
@@ -234,7 +239,8 @@ SNAPSHOTS_SQL = (
         SELECT unnest(range(seq // $k + 1, coalesce(nxt, $n) // $k + 1)) * $k AS b,
             scope, key, seq, type, value, length(value::VARCHAR) > $large AS big
         FROM (SELECT *, lead(seq) OVER (PARTITION BY scope, key ORDER BY seq) AS nxt
-              FROM blackboard WHERE run_id = $run_id)),
+              FROM blackboard WHERE run_id = $run_id)
+        WHERE coalesce(nxt, $n) // $k > seq // $k),
     scopes AS (SELECT DISTINCT b, scope FROM writes),
     entries AS (
         SELECT b, scope, json_group_object(key, CASE WHEN big THEN NULL ELSE value END) AS obj
@@ -301,18 +307,21 @@ def _retry_attempts(
     run_id: str,
     tree: Tree,
     mutations: list[TreeMutation],
-    retries: list[int],
+    counted: tuple[list[int], list[int]],
     events: int,
     every: int,
 ) -> pa.Table:
     """``State.retry_attempts`` at each boundary where it is not empty, as (b, JSON): the
-    projection folded over the only events that change it — failures, the retry nodes'
-    own changes, and the mutations (which may add retries)."""
+    projection folded over the only events that change it — failures of retries' children,
+    the retry nodes' own changes, and the mutations (which may add retries). ``counted``:
+    the uids of every retry node and of every child of one, all mutations applied."""
     rows = con.execute(
         """SELECT seq, t_ns, tick, uid, enum_code(prev_status), enum_code(status)
         FROM transitions WHERE run_id = $run_id
-            AND (status = 'FAILURE' OR list_contains($retries, uid)) ORDER BY seq""",
-        {"run_id": run_id, "retries": retries},
+            AND ((status = 'FAILURE' AND list_contains($children, uid))
+                OR (status <> 'RUNNING' AND list_contains($retries, uid)))
+        ORDER BY seq""",
+        {"run_id": run_id, "retries": counted[0], "children": counted[1]},
     ).fetchall()
     projection, codes = StateProjection(tree), _STATUS_BY_CODE
     attempts = projection.state.retry_attempts
