@@ -64,7 +64,6 @@ from btlog.replay.moments import (
 from btlog.replay.snapshots import (
     DEFAULT_SNAPSHOT_EVERY,
     EventBatch,
-    fetch_events,
     load_mutations,
     load_snapshot,
 )
@@ -461,21 +460,15 @@ class Run:
             self._blocks.move_to_end(index)
             return cached
         seq = index * self.snapshot_every
-        (state,) = only_row(
+        mutations = [m for m in self.mutations if seq <= m.seq < seq + self.snapshot_every]
+        state, status, writes = only_row(
             self.con,
-            f"SELECT state FROM {self._prefix}_snapshots WHERE run_id = $run_id AND seq = $seq",
+            f"SELECT state, status_block, write_block FROM {self._prefix}_snapshots "
+            f"WHERE run_id = $run_id AND seq = $seq",
             {"run_id": self._stored_id, "seq": seq},
         )
         snapshot = load_snapshot(self.con, self._stored_id, state, self._prefix)
-        events = fetch_events(
-            self.con,
-            self._stored_id,
-            seq,
-            seq + self.snapshot_every,
-            self.mutations,
-            self._prefix,
-        )
-        block = (snapshot, events)
+        block = (snapshot, EventBatch.from_row(status, writes, mutations))
         self._blocks[index] = block
         if len(self._blocks) > self.CACHED_BLOCKS:
             self._blocks.popitem(last=False)

@@ -115,41 +115,15 @@ class EventBatch:
                 found = (event.seq, event.t_ns, event.tick)
         return None if found is None else found[1:]
 
-
-def fetch_events(
-    con: duckdb.DuckDBPyConnection,
-    run_id: str,
-    lo: int,
-    hi: int,
-    mutations: list[TreeMutation],
-    prefix: str = "",
-) -> EventBatch:
-    """The events with ``lo <= seq < hi`` of a run, from the tables (``prefix``: the
-    catalog, e.g. ``"run0."``)."""
-    params = {"run_id": run_id, "lo": lo, "hi": hi}
-    table = con.sql(
-        f"""SELECT seq, t_ns, tick, uid, enum_code(prev_status),
-            enum_code(status) FROM {prefix}transitions
-        WHERE run_id = $run_id AND seq >= $lo AND seq < $hi ORDER BY seq""",
-        params=params,
-    ).to_arrow_table()
-    columns = [column.to_pylist() for column in table.columns]
-    rows = con.execute(
-        f"""SELECT seq, t_ns, tick, scope, key, value, type, writer_uid
-        FROM {prefix}blackboard WHERE run_id = $run_id AND seq >= $lo AND seq < $hi
-        ORDER BY seq""",
-        params,
-    ).fetchall()
-    loads = orjson.loads
-    writes = [
-        BlackboardWrite(
-            seq, t, tick, scope, key, None if value is None else loads(value), kind, writer
-        )
-        for seq, t, tick, scope, key, value, kind, writer in rows
-    ]
-    seq, t_ns, tick, uid, prev, status = columns
-    inside = [m for m in mutations if lo <= m.seq < hi]
-    return EventBatch(seq, t_ns, tick, uid, prev, status, writes, inside)
+    @classmethod
+    def from_row(
+        cls, status: list[list[int]], writes: str, mutations: list[TreeMutation]
+    ) -> EventBatch:
+        """The batch of a snapshot row's ``status_block`` (six columns) and
+        ``write_block`` (JSON rows), with the given mutations of its range."""
+        seq, t_ns, tick, uid, prev, new = status
+        rows = [BlackboardWrite(*row) for row in orjson.loads(writes)]
+        return cls(seq, t_ns, tick, uid, prev, new, rows, mutations)
 
 
 def _seq_of(event: BlackboardWrite | TreeMutation) -> int:
@@ -264,6 +238,17 @@ SNAPSHOTS_SQL = (
         UNION ALL SELECT seq, t_ns, tick FROM blackboard WHERE run_id = $run_id
         UNION ALL SELECT seq, t_ns, tick FROM _mutations WHERE run_id = $run_id),
     bounds AS (SELECT unnest(range(0, $n // $k + 1)) * $k AS b),
+    status_blocks AS (
+        SELECT seq // $k * $k AS b,
+            [list(seq ORDER BY seq), list(t_ns ORDER BY seq), list(tick ORDER BY seq),
+             list(uid ORDER BY seq), list(enum_code(prev_status)::BIGINT ORDER BY seq),
+             list(enum_code(status)::BIGINT ORDER BY seq)] AS block
+        FROM transitions WHERE run_id = $run_id GROUP BY ALL),
+    write_blocks AS (
+        SELECT seq // $k * $k AS b,
+            list(json_array(seq, t_ns, tick, scope, key, value, type, writer_uid)
+                ORDER BY seq)::JSON AS block
+        FROM blackboard WHERE run_id = $run_id GROUP BY ALL),
     last_in AS (
         SELECT (seq // $k + 1) * $k AS b, max(seq) + 1 AS seq, arg_max(t_ns, seq) AS t_ns,
             arg_max(tick, seq) AS tick
@@ -287,7 +272,8 @@ SNAPSHOTS_SQL = (
             'retry_attempts', coalesce(r.attempts, '{{}}')::JSON,
             'last_leaf', leaf.uid,
             'blackboard', coalesce(bb.blackboard, '{{}}'::JSON),
-            'blackboard_refs', rf.refs)
+            'blackboard_refs', rf.refs),
+        coalesce(sb.block, [[], [], [], [], [], []]), coalesce(wb.block, '[]')
     FROM bounds
     LEFT JOIN last_event l USING (b)
     LEFT JOIN first_event f USING (b)
@@ -298,6 +284,8 @@ SNAPSHOTS_SQL = (
     LEFT JOIN leaf_at leaf ON leaf.b = bounds.b
     LEFT JOIN boards bb ON bb.b = bounds.b
     LEFT JOIN refs rf ON rf.b = bounds.b
+    LEFT JOIN status_blocks sb ON sb.b = bounds.b
+    LEFT JOIN write_blocks wb ON wb.b = bounds.b
     ORDER BY bounds.b"""
 )
 

@@ -2,7 +2,7 @@
 
 The public tables (``runs``, ``nodes``, ``transitions``, ``blackboard``, ``ticks``,
 ``mutations``) are the ones users write SQL against; internal tables start with ``_``:
-``_snapshots`` (the state every K events; the events after it are read from the tables),
+``_snapshots`` (the state every K events and the events up to the next one),
 ``_mutations`` (the full mutation messages, to rebuild inserted nodes), ``_answers``
 (questions asked live) and ``_ingest`` (what was read, and from which file).
 """
@@ -41,7 +41,8 @@ SCHEMA = (
     """CREATE TABLE _answers (run_id VARCHAR, seq BIGINT, t_ns BIGINT, tick BIGINT,
         question VARCHAR, intent VARCHAR, answer VARCHAR)""",
     """CREATE TABLE _snapshots (run_id VARCHAR, seq BIGINT, t_ns BIGINT, tick BIGINT,
-        first_t_ns BIGINT, first_tick BIGINT, state JSON)""",
+        first_t_ns BIGINT, first_tick BIGINT, state JSON,
+        status_block BIGINT[][], write_block JSON)""",
     """CREATE TABLE _ingest (run_id VARCHAR, file VARCHAR, size BIGINT, mtime_ns BIGINT,
         schema_version VARCHAR, ingest_version VARCHAR, events BIGINT, last_tick BIGINT,
         truncated BOOLEAN, warnings JSON, snapshot_every BIGINT, tree JSON,
