@@ -15,8 +15,8 @@ ingested into an in-memory catalog.
 
 **The state at a moment.** ``Run.state_at(moment)`` resolves the moment to a number of
 events (``btlog.replay.moments``) and reads one row of ``_snapshots``: the state every
-``snapshot_every`` events (written at ingestion), and the events from it up to the next
-snapshot (one range query on the tables). It folds only those events up to the moment with
+``snapshot_every`` events (written at ingestion) together with the block of events up to
+the next snapshot. It folds only the events of that block up to the moment with
 ``StateProjection`` — never the run from its start — so every moment of a long run
 costs the same: one point query and at most ``snapshot_every`` events. Times and ticks
 are resolved from the same rows (each knows the time and tick of its first event). The
@@ -460,15 +460,15 @@ class Run:
             self._blocks.move_to_end(index)
             return cached
         seq = index * self.snapshot_every
-        mutations = [m for m in self.mutations if seq <= m.seq < seq + self.snapshot_every]
-        state, status, writes = only_row(
+        state, events = only_row(
             self.con,
-            f"SELECT state, status_block, write_block FROM {self._prefix}_snapshots "
+            f"SELECT state, events FROM {self._prefix}_snapshots "
             f"WHERE run_id = $run_id AND seq = $seq",
             {"run_id": self._stored_id, "seq": seq},
         )
+        mutations = [m for m in self.mutations if seq <= m.seq < seq + self.snapshot_every]
         snapshot = load_snapshot(self.con, self._stored_id, state, self._prefix)
-        block = (snapshot, EventBatch.from_row(status, writes, mutations))
+        block = (snapshot, EventBatch.from_block(events, mutations))
         self._blocks[index] = block
         if len(self._blocks) > self.CACHED_BLOCKS:
             self._blocks.popitem(last=False)

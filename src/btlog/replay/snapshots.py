@@ -20,9 +20,11 @@ from typing import Any, cast
 import duckdb
 import orjson
 import pyarrow as pa
+import zstandard
 
 from btlog.events import BlackboardWrite, TreeMutation
 from btlog.record import format as fmt
+from btlog.replay.tables import insert_arrow
 from btlog.state import RECOVERY_TYPE, RETRY_TYPE, StateProjection
 from btlog.status import Status
 from btlog.tree.model import EXECUTION_KINDS, Tree
@@ -116,14 +118,13 @@ class EventBatch:
         return None if found is None else found[1:]
 
     @classmethod
-    def from_row(
-        cls, status: list[list[int]], writes: str, mutations: list[TreeMutation]
-    ) -> EventBatch:
-        """The batch of a snapshot row's ``status_block`` (six columns) and
-        ``write_block`` (JSON rows), with the given mutations of its range."""
-        seq, t_ns, tick, uid, prev, new = status
-        rows = [BlackboardWrite(*row) for row in orjson.loads(writes)]
-        return cls(seq, t_ns, tick, uid, prev, new, rows, mutations)
+    def from_block(cls, data: bytes, mutations: list[TreeMutation]) -> EventBatch:
+        """The batch of a snapshot row's ``events`` (see ``build_snapshots``), with the
+        given mutations of its range."""
+        message = orjson.loads(zstandard.ZstdDecompressor().decompress(data))
+        writes = [BlackboardWrite(*row) for row in message["writes"]]
+        seq, t_ns, tick, uid, prev, status = message["status"]
+        return cls(seq, t_ns, tick, uid, prev, status, writes, mutations)
 
 
 def _seq_of(event: BlackboardWrite | TreeMutation) -> int:
@@ -177,10 +178,19 @@ def build_snapshots(
             "execution": execution,
             "large": INLINE_VALUE_BYTES,
         }
-        con.execute(f"INSERT INTO _snapshots {SNAPSHOTS_SQL.format(retry_view=view)}", params)
+        rows = con.sql(SNAPSHOTS_SQL.format(retry_view=view), params=params).to_arrow_table()
     finally:
         con.unregister(view)
-    return events // every + 1
+    compress = zstandard.ZstdCompressor(level=1).compress
+    blocks = [
+        compress(b'{"status":%s,"writes":%s}' % (status.encode(), writes.encode()))
+        for status, writes in zip(
+            rows["status_block"].to_pylist(), rows["write_block"].to_pylist(), strict=True
+        )
+    ]
+    table = rows.drop_columns(["status_block", "write_block"])
+    insert_arrow(con, "_snapshots", run_id, table.append_column("events", pa.array(blocks)))
+    return table.num_rows
 
 
 def _spans(name: str, where: str, partition: str, columns: str) -> str:
@@ -242,7 +252,7 @@ SNAPSHOTS_SQL = (
         SELECT seq // $k * $k AS b,
             [list(seq ORDER BY seq), list(t_ns ORDER BY seq), list(tick ORDER BY seq),
              list(uid ORDER BY seq), list(enum_code(prev_status)::BIGINT ORDER BY seq),
-             list(enum_code(status)::BIGINT ORDER BY seq)] AS block
+             list(enum_code(status)::BIGINT ORDER BY seq)]::JSON AS block
         FROM transitions WHERE run_id = $run_id GROUP BY ALL),
     write_blocks AS (
         SELECT seq // $k * $k AS b,
@@ -262,7 +272,8 @@ SNAPSHOTS_SQL = (
     first_event AS (
         SELECT seq // $k * $k AS b, arg_min(t_ns, seq) AS t_ns, arg_min(tick, seq) AS tick
         FROM every_event GROUP BY ALL)
-    SELECT $run_id, bounds.b, coalesce(l.t_ns, 0), coalesce(l.tick, 0), f.t_ns, f.tick,
+    SELECT bounds.b AS seq, coalesce(l.t_ns, 0) AS t_ns, coalesce(l.tick, 0) AS tick,
+        f.t_ns AS first_t_ns, f.tick AS first_tick,
         json_object(
             'seq', coalesce(l.seq, 0), 't_ns', coalesce(l.t_ns, 0),
             'tick', coalesce(l.tick, 0),
@@ -272,8 +283,9 @@ SNAPSHOTS_SQL = (
             'retry_attempts', coalesce(r.attempts, '{{}}')::JSON,
             'last_leaf', leaf.uid,
             'blackboard', coalesce(bb.blackboard, '{{}}'::JSON),
-            'blackboard_refs', rf.refs),
-        coalesce(sb.block, [[], [], [], [], [], []]), coalesce(wb.block, '[]')
+            'blackboard_refs', rf.refs)::VARCHAR AS state,
+        coalesce(sb.block, '[[], [], [], [], [], []]')::VARCHAR AS status_block,
+        coalesce(wb.block, '[]')::VARCHAR AS write_block
     FROM bounds
     LEFT JOIN last_event l USING (b)
     LEFT JOIN first_event f USING (b)
