@@ -289,12 +289,21 @@ def timeline_line(row: dict) -> str:
 # -- sql ---------------------------------------------------------------------------------
 def sql(args: Namespace) -> int:
     """``btlog sql``: run a query over one or many runs, read-only (``RunDatabase.lock``)."""
-    database = _open_runs(*args.runs)
-    try:
-        database.lock()
-        columns, rows = database.sql(args.query)
-    finally:
-        database.close()
+    if args.lake is not None:
+        if args.runs:
+            raise ValueError("sql: give recordings or --lake LAKE, not both")
+        from btlog.cli.fleet import lake_sql
+
+        columns, rows = lake_sql(args)
+    elif not args.runs:
+        raise ValueError("sql: give at least one recording (or --lake LAKE)")
+    else:
+        database = _open_runs(*args.runs)
+        try:
+            database.lock()
+            columns, rows = database.sql(args.query)
+        finally:
+            database.close()
     if args.format == "json":
         print(
             json.dumps(

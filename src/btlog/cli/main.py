@@ -169,8 +169,14 @@ def build_parser() -> argparse.ArgumentParser:
         "cannot read or write files (read_csv, glob, COPY TO, ATTACH), install or load "
         "extensions, or change any later answer.",
     )
-    sql.add_argument("runs", metavar="RUN", nargs="+")
+    sql.add_argument("runs", metavar="RUN", nargs="*")
     sql.add_argument("query", metavar="QUERY")
+    sql.add_argument(
+        "--lake",
+        metavar="LAKE",
+        help="query a Parquet lake written by 'export --parquet' instead (views named "
+        "like the tables, plus causes; columns domain, date and run_id from the folders)",
+    )
     sql.add_argument("--format", choices=("table", "csv", "json"), default="table")
 
     diff = commands.add_parser("diff", help="divergence between two runs (or a run and a tree)")
@@ -215,15 +221,16 @@ def build_parser() -> argparse.ArgumentParser:
     add_limit_flags(validate)
     validate.add_argument("--json", action="store_true", help="JSON output")
 
-    from btlog.cli import cache, sources
+    from btlog.cli import cache, fleet, sources
 
     sources.add_parsers(commands)
     cache.add_parsers(commands)
+    fleet.add_parsers(commands)
     return parser
 
 
 def _handlers() -> dict[str, Callable[[argparse.Namespace], int]]:
-    from btlog.cli import cache, checks, commands, replay, sources, view
+    from btlog.cli import cache, checks, commands, fleet, replay, sources, view
 
     return {
         "run": commands.run,
@@ -242,6 +249,7 @@ def _handlers() -> dict[str, Callable[[argparse.Namespace], int]]:
         "attach": sources.attach,
         "cache": cache.cache_command,
         "view": view.view,
+        "fleet": fleet.fleet,
     }
 
 

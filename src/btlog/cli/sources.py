@@ -58,9 +58,20 @@ def add_parsers(commands: argparse._SubParsersAction) -> None:
         description="Write a recording as a BT.CPP FileLogger2 .btlog, which Groot2 opens, or "
         "as a ROS 2 MCAP bag with Nav2's /behavior_tree_log (nav2), which Foxglove opens.",
     )
-    export.add_argument("run", metavar="REC", help="a btlog recording")
-    export.add_argument("--to", choices=("btlog", "nav2"), required=True, help="the format")
-    export.add_argument("output", metavar="OUT", help="file to write (OUT.btlog or OUT.mcap)")
+    export.add_argument(
+        "items",
+        metavar="REC OUT | RUN...",
+        nargs="+",
+        help="with --to: a recording and the file to write (OUT.btlog or OUT.mcap); "
+        "with --parquet: the recordings to export",
+    )
+    export.add_argument("--to", choices=("btlog", "nav2"), help="the format")
+    export.add_argument(
+        "--parquet",
+        metavar="LAKE",
+        help="write each run's tables as Parquet under LAKE "
+        "(LAKE/TABLE/domain=…/date=…/run_id=…/data.parquet), for 'btlog fleet' and 'sql --lake'",
+    )
 
 
 def _add_model_and_gap(parser: argparse.ArgumentParser) -> None:
@@ -150,8 +161,19 @@ _EXPORTS = {
 
 
 def export(args: Namespace) -> int:
-    """``btlog export REC --to btlog OUT.btlog`` or ``--to nav2 OUT.mcap``."""
+    """``btlog export REC --to btlog OUT.btlog``, ``--to nav2 OUT.mcap``, or
+    ``RUN... --parquet LAKE``."""
     from btlog.record.reader import open_recording
+
+    if args.parquet is not None:
+        if args.to is not None:
+            raise ValueError("export: --to and --parquet cannot be combined")
+        from btlog.cli.fleet import export_parquet
+
+        return export_parquet(args)
+    if args.to is None or len(args.items) != 2:
+        raise ValueError("export: give REC OUT with --to btlog|nav2, or RUN... --parquet LAKE")
+    args.run, args.output = args.items
 
     suffix, expects, holds = _EXPORTS[args.to]
     if Path(args.output).suffix != suffix:

@@ -322,7 +322,7 @@ class RunDatabase:
         returns (column names, rows). Once ``lock``ed, only queries are run."""
         try:
             if self.locked:
-                _only_queries(self.con, query)
+                only_queries(self.con, query)
             cursor = (
                 self.con.execute(query, params) if params is not None else self.con.execute(query)
             )
@@ -343,7 +343,7 @@ class RunDatabase:
         self.close()
 
 
-def _only_queries(con: duckdb.DuckDBPyConnection, query: str) -> None:
+def only_queries(con: duckdb.DuckDBPyConnection, query: str) -> None:
     """ReplayError unless every statement of ``query`` is a query (SELECT, or EXPLAIN
     without ANALYZE, which would run the statement)."""
     for statement in con.extract_statements(query):

@@ -1,0 +1,107 @@
+"""The commands over a fleet of runs: ``export --parquet``, ``sql --lake``, ``fleet``."""
+
+from __future__ import annotations
+
+import argparse
+import json
+from argparse import Namespace
+
+from btlog.render.escape import safe
+
+_DATE = r"\d{4}-\d{2}-\d{2}"
+
+
+def add_parsers(commands: argparse._SubParsersAction) -> None:
+    """Add ``fleet`` to the command line."""
+    fleet = commands.add_parser(
+        "fleet",
+        help="report across many runs exported to a Parquet lake",
+        description="Outcome counts; per node its activations, failure rate and duration "
+        "percentiles; the most frequent failure causes. Across every run of LAKE (written "
+        "by 'btlog export RUN... --parquet LAKE'), or one domain/date of it.",
+    )
+    fleet.add_argument("lake", metavar="LAKE")
+    fleet.add_argument("--domain", metavar="D", help="only runs of this domain")
+    fleet.add_argument("--date", metavar="YYYY-MM-DD", help="only runs started that day")
+    fleet.add_argument("--nodes", metavar="N", type=int, default=15, help="node rows shown (15)")
+    fleet.add_argument("--json", action="store_true", help="JSON output (every node)")
+
+
+def export_parquet(args: Namespace) -> int:
+    """``btlog export RUN... --parquet LAKE``: every run's tables into the lake."""
+    from btlog.fleet.lake import check_exportable, export_runs
+
+    check_exportable(args.items, args.parquet)
+    done = export_runs(args.items, args.parquet)
+    transitions = sum(e.transitions for e in done)
+    print(f"{len(done)} runs ({transitions} transitions) -> {safe(args.parquet)}")
+    return 0
+
+
+def fleet(args: Namespace) -> int:
+    """``btlog fleet LAKE``: the fleet report (``btlog.fleet.report``)."""
+    import re
+
+    from btlog.fleet.report import duckdb_report
+
+    if args.date is not None and not re.fullmatch(_DATE, args.date):
+        raise ValueError(f"--date {args.date!r}: expected YYYY-MM-DD")
+    report = duckdb_report(args.lake, args.domain, args.date)
+    if args.json:
+        print(json.dumps(report.to_json(), indent=2))
+        return 0
+    if not report.runs:
+        print("no runs match")
+        return 0
+    from rich.table import Table
+
+    from btlog.render.terminal import make_console
+
+    console = make_console()
+    outcomes = ", ".join(f"{row['runs']} {safe(row['final_status'])}" for row in report.outcomes)
+    console.print(f"{report.runs} runs: {outcomes}")
+    nodes = Table("node", "activations", "failed", "failure rate", "p50 s", "p90 s", "p99 s")
+    for row in report.nodes[: args.nodes]:
+        nodes.add_row(
+            safe(row["name"] or row["type"]),
+            str(row["activations"]),
+            str(row["failed"]),
+            "-" if row["failure_rate"] is None else f"{row['failure_rate']:.1%}",
+            *("-" if row[k] is None else f"{row[k]:.3f}" for k in ("p50_s", "p90_s", "p99_s")),
+        )
+    console.print(nodes)
+    if len(report.nodes) > args.nodes:
+        console.print(f"({len(report.nodes) - args.nodes} more nodes: --nodes N or --json)")
+    if report.causes:
+        causes = Table("failed", "because", "times", "runs")
+        for row in report.causes:
+            causes.add_row(
+                safe(row["failed_node"] or "-"),
+                safe(f"{row['cause']} {row['verb']}"),
+                str(row["times"]),
+                str(row["runs"]),
+            )
+        console.print(causes)
+    else:
+        console.print("no failures")
+    return 0
+
+
+def lake_sql(args: Namespace) -> tuple[list[str], list[tuple]]:
+    """``btlog sql --lake LAKE QUERY``: one read-only query over the lake's views."""
+    import duckdb
+
+    from btlog.errors import one_line
+    from btlog.fleet.lake import open_lake
+    from btlog.replay.database import ReplayError, only_queries
+
+    con = open_lake(args.lake)
+    try:
+        only_queries(con, args.query)
+        cursor = con.execute(args.query)
+        columns = [d[0] for d in cursor.description or ()]
+        return columns, cursor.fetchall() if cursor.description else []
+    except duckdb.Error as error:
+        raise ReplayError(f"SQL error: {one_line(error)}") from None
+    finally:
+        con.close()
