@@ -70,16 +70,20 @@ def export_runs(
     """
     root = Path(lake)
     done: list[Exported] = []
+    columns: dict[str, list[str]] = {}
     for recording in recordings:
         with open_runs(recording, cache=False) as database:
-            exported = _export_run(database.run(), database.con, root)
+            exported = _export_run(database.run(), database.con, root, columns)
         done.append(exported)
         if on_run is not None:
             on_run(exported)
     return done
 
 
-def _export_run(run: Run, con: duckdb.DuckDBPyConnection, root: Path) -> Exported:
+def _export_run(
+    run: Run, con: duckdb.DuckDBPyConnection, root: Path, columns: dict[str, list[str]]
+) -> Exported:
+    """Write one run's tables (``columns``: each table's columns, filled on first use)."""
     info = run.info
     keys = {
         "domain": partition_value(info.domain),
@@ -94,12 +98,13 @@ def _export_run(run: Run, con: duckdb.DuckDBPyConnection, root: Path) -> Exporte
             shutil.rmtree(target)
         target.mkdir(parents=True)
         source = "_btlog_causes" if table == "causes" else f"{run.catalog}.{identifier(table)}"
-        columns = _columns(con, source)
+        if table not in columns:
+            columns[table] = _columns(con, source)
         selected = ", ".join(
             f"CAST({identifier(c)} AS VARCHAR) AS {identifier(c)}"
             if c in ("status", "prev_status", "final_status", "root_status")
             else identifier(c)
-            for c in columns
+            for c in columns[table]
             if c not in PARTITIONS
         )
         con.execute(
