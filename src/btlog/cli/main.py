@@ -277,7 +277,14 @@ def main(argv: Sequence[str] | None = None) -> int:
     """Run the command line; returns the exit code."""
     parser = build_parser()
     try:
-        args = parser.parse_args(join_negative_moments(sys.argv[1:] if argv is None else argv))
+        args, extra = parser.parse_known_args(
+            join_negative_moments(sys.argv[1:] if argv is None else argv)
+        )
+        if extra and args.command == "export" and not any(a.startswith("-") for a in extra):
+            # argparse takes one run of positionals: `export REC --to F OUT` leaves OUT over
+            args.items += extra
+        elif extra:
+            parser.error(f"unrecognized arguments: {' '.join(extra)}")
     except SystemExit as exit_:
         return int(exit_.code or 0)
     from btlog.cli.cache import cache_dir_of

@@ -61,7 +61,7 @@ def add_parsers(commands: argparse._SubParsersAction) -> None:
     export.add_argument(
         "items",
         metavar="REC OUT | RUN...",
-        nargs="+",
+        nargs="*",
         help="with --to: a recording and the file to write (OUT.btlog or OUT.mcap); "
         "with --parquet: the recordings to export",
     )
@@ -167,12 +167,12 @@ def export(args: Namespace) -> int:
 
     if args.parquet is not None:
         if args.to is not None:
-            raise ValueError("export: --to and --parquet cannot be combined")
+            raise ValueError("--to and --parquet cannot be combined")
         from btlog.cli.fleet import export_parquet
 
         return export_parquet(args)
     if args.to is None or len(args.items) != 2:
-        raise ValueError("export: give REC OUT with --to btlog|nav2, or RUN... --parquet LAKE")
+        raise ValueError("give REC OUT with --to btlog|nav2, or RUN... --parquet LAKE")
     args.run, args.output = args.items
 
     suffix, expects, holds = _EXPORTS[args.to]
