@@ -39,17 +39,29 @@ class _InOrder(ControlBehavior):
         self.set_status(RUNNING)
         children = self.children
         while self.index < len(children):
-            result = children[self.index].execute_tick()
+            child = children[self.index]
+            before = child.status
+            result = child.execute_tick()
             if result is RUNNING:
                 return RUNNING
             if result is self.decisive:
-                self.reset_children()
-                self.index = 0
+                self._decided()
                 return result
+            self.index += 1
             if result is SKIPPED:
                 self.skipped += 1
-            self.index += 1
+            elif self._wakes_up(before):
+                return RUNNING
         return self._finish()
+
+    def _decided(self) -> None:
+        """The decisive result: every child is reset and the next tick starts over."""
+        self.reset_children()
+        self.index = 0
+
+    def _wakes_up(self, before: Status) -> bool:
+        """Whether a child that just completed ends this tick early (see SequenceWithMemory)."""
+        return False
 
     def _finish(self) -> Status:
         all_skipped = self.skipped == len(self.children)
@@ -83,29 +95,12 @@ class SequenceWithMemory(Sequence):
     the index, so the next tick retries the failed child; halting keeps the index too.
     A child succeeding from IDLE with more to go signals a wake-up and returns RUNNING."""
 
-    def tick(self) -> Status:
-        if self.status is IDLE:
-            self.skipped = 0
-        self.set_status(RUNNING)
-        children = self.children
-        while self.index < len(children):
-            child = children[self.index]
-            before = child.status
-            result = child.execute_tick()
-            if result is RUNNING:
-                return RUNNING
-            if result is FAILURE:
-                for i in range(self.index, len(children)):
-                    self.halt_child(i)
-                return FAILURE
-            if result is SKIPPED:
-                self.skipped += 1
-                self.index += 1
-                continue
-            self.index += 1
-            if self.wake_up_early(before, self.index < len(children)):
-                return RUNNING
-        return self._finish()
+    def _decided(self) -> None:
+        for i in range(self.index, len(self.children)):
+            self.halt_child(i)
+
+    def _wakes_up(self, before: Status) -> bool:
+        return self.wake_up_early(before, self.index < len(self.children))
 
     def halt(self) -> None:
         ControlBehavior.halt(self)
