@@ -1,87 +1,16 @@
-"""Compare two action sequences with the O(NP) algorithm of Wu, Manber, Myers and Miller.
+"""Compare two sequences with the O(NP) algorithm of Wu, Manber, Myers and Miller (1990).
 
-Reference: S. Wu, U. Manber, G. Myers and W. Miller, "An O(NP) Sequence Comparison
-Algorithm", Information Processing Letters 35(6), 1990.
+The edit distance counts the deletions (items only in ``A``) and insertions (items only
+in ``B``) that turn ``A`` into ``B``; what is left is a longest common subsequence. The
+algorithm walks the edit graph diagonal by diagonal (``k = y - x``), keeping for each
+diagonal only its furthest-reaching point ``fp[k]``, and grows the number ``p`` of steps
+taken away from the target diagonal ``Δ = N - M`` until ``fp[Δ] == N``. That costs
+``O((M + N) · P)``: fast when the sequences are alike, however long they are.
 
-The problem
------------
-Given two sequences ``A`` (length ``M``) and ``B`` (length ``N``), find the smallest
-number of single-item *deletions* (an item only in ``A``) and *insertions* (an item
-only in ``B``) that turn ``A`` into ``B``. There are no substitutions: replacing one
-item by another costs one deletion plus one insertion. Equivalently we look for a
-longest common subsequence (LCS): ``distance = M + N - 2 * len(LCS)``.
-
-The edit graph
---------------
-Picture a grid whose point ``(x, y)`` means "the first ``x`` items of ``A`` and the
-first ``y`` items of ``B`` have been accounted for". From ``(x, y)`` one may step
-
-* right, to ``(x + 1, y)``: delete ``A[x]`` (cost 1);
-* down, to ``(x, y + 1)``: insert ``B[y]`` (cost 1);
-* diagonally, to ``(x + 1, y + 1)``, only when ``A[x] == B[y]`` (cost 0).
-
-A cheapest path from ``(0, 0)`` to ``(M, N)`` is an optimal alignment. A maximal run of
-free diagonal steps is called a *snake*: after any edit it always pays to follow the
-snake as far as it goes, because matching items never hurt.
-
-Diagonals and furthest-reaching points
---------------------------------------
-Number the diagonals of the grid by ``k = y - x``. The path starts on diagonal ``0`` and
-must end on diagonal ``Δ = N - M``. An insertion moves the path one diagonal up
-(``k + 1``), a deletion one diagonal down (``k - 1``), and a snake stays on its diagonal.
-
-Instead of filling the whole ``M × N`` table (as the classic dynamic programme does),
-the algorithm only remembers, for every diagonal ``k``, the *furthest-reaching point*
-``fp[k]``: the largest ``y`` reachable on diagonal ``k`` with the current budget of
-edits. A point further along a diagonal is always at least as good as an earlier one
-(anything the earlier point can still do, the later one can do as well), so this single
-number per diagonal is all that must be kept.
-
-Why P, and why ``N >= M``
--------------------------
-Assume ``N >= M`` (otherwise swap the sequences; deletions and insertions swap roles).
-Any path to diagonal ``Δ`` uses ``D`` deletions and ``D + Δ`` insertions, for some ``D``;
-its cost is ``Δ + 2D``, so minimising the cost means minimising the deletions. Call a
-step *away from* ``Δ`` a deletion taken below ``Δ`` or an insertion taken above it.
-Excursions above ``Δ`` must come back, so their insertions are paid for by as many
-deletions: a complete path has exactly ``D`` steps away from ``Δ``.
-
-The algorithm searches in rounds ``p = 0, 1, 2, ...``; round ``p`` computes, for every
-diagonal, the furthest point reachable with at most ``p`` steps away from ``Δ``. Such
-a path can only visit diagonals ``-p .. Δ + p``, so round ``p`` updates just those,
-each from its two neighbours::
-
-    fp[k] = snake(k, max(fp[k - 1] + 1, fp[k + 1]))
-
-(``fp[k - 1] + 1``: come from diagonal ``k - 1`` by an insertion; ``fp[k + 1]``: come
-from diagonal ``k + 1`` by a deletion; then slide along the snake). Diagonals below
-``Δ`` are swept upwards (``-p .. Δ - 1``), those above ``Δ`` downwards
-(``Δ + p .. Δ + 1``), and ``Δ`` last. So when ``fp[k]`` is computed, its neighbour
-farther from ``Δ`` has already been updated in round ``p`` (stepping from it towards
-``Δ`` is free), while its neighbour nearer to ``Δ`` still holds its round ``p - 1``
-value (stepping from it away from ``Δ`` uses up this round's extra away-step). The
-snake on ``Δ`` itself is computed from two fresh neighbours.
-
-The search stops in the first round ``P`` where ``fp[Δ] == N``; then the edit distance
-is ``Δ + 2P``, and ``P`` is exactly the number of deletions of an optimal script. Each
-round costs ``O(Δ + p)`` plus the snake lengths, which gives ``O((M + N) · P)`` time
-overall: very fast when the sequences are similar, however long they are, which is
-exactly the situation of "what the agent did" versus "what a human expected".
-
-Recovering the alignment
-------------------------
-``fp`` alone only gives the distance. To recover the actual edit script, every time a
-diagonal's furthest point is computed we also store a small node ``(parent, x, y,
-length)``: the snake that starts at ``(x, y)`` and is ``length`` long, linked to the
-node of the neighbouring diagonal it was reached from. The edit between two nodes (one
-deletion or one insertion) is implied by where the parent's snake ended. Walking the
-chain back from ``fp[Δ]`` yields the whole path. This keeps the time bound and costs
-one node per evaluation of ``fp[k]``, i.e. ``O((P + 1) · (Δ + P + 1))`` nodes in the
-worst case (at most ``O((M + N) · P)``), on top of the ``O(M + N)`` ``fp`` array.
-
-Finally, within each gap between two matched runs, the deletions are reported before
-the insertions (in index order), which gives a stable, readable diff; it is still an
-optimal alignment because the matched items are unchanged.
+To recover the alignment, each ``fp[k]`` also stores the snake it ended with, linked to
+the neighbour it came from; walking those links back yields the path. Within a gap
+between matched runs, deletions are listed before insertions (still optimal, and stable).
+See docs/design.md, "Divergence".
 """
 
 from __future__ import annotations

@@ -1,32 +1,12 @@
 """Regression checks on stored runs: expectations, re-recording, and re-running.
 
-A stored run is a test case. Two kinds of check make it one (design §10):
-
-**Expectations** pin down what a run *was*. An expectations file (YAML) lists the run's
-final status, answers to questions at moments, and node statuses at moments::
-
-    final_status: SUCCESS
-    answers:
-      - at: "seq:1234"
-        ask: "Why are you doing this?"
-        answer: "I scan scene for collision avoidance in order to insert large gear."
-    statuses:
-      - at: "12.5s"
-        node: "detect chuck"          # name, type or path, as in outcomes files
-        status: RUNNING
-
-Checking replays the run to each moment and compares; re-recording (the snapshot-testing
-workflow) replaces the expected values by the actual ones, so that an intended change is
-accepted by regenerating the file and reviewing its diff. Two optional keys serve the
-pytest plugin: ``run`` (the recording, relative to the file) and ``rerun: true``.
-
-**Re-running** pins down what a run *does*: the tree (as it is now, or another file) is
-executed again with the recorded domain, seed, outcomes and live questions, and the two
-behaviours are compared subgoal by subgoal with the divergence algorithm
-(``btlog.explain.divergence``). Any divergent action, or another final status, fails —
-and the report says in which subgoal, which actions, and where they moved.
-
-Every function here serves both ``btlog check`` and the pytest plugin.
+An expectations file pins down what a run *was*: its final status, answers to questions
+and node statuses at moments (validated by ``schemas/expectations.schema.json``).
+Checking replays the run to each moment and compares; re-recording writes the actual
+values back, as snapshot-testing tools do. A re-run pins down what a run *does*: the
+tree runs again with the recorded settings and the two behaviours are compared subgoal
+by subgoal (``btlog.explain.divergence``). ``btlog check`` and the pytest plugin both
+use these functions. See docs/design.md, "Checks".
 """
 
 from __future__ import annotations

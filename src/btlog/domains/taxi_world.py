@@ -1,56 +1,17 @@
-"""The Taxi domain of Han et al. (section 7.2): a grid world, its optimal policy, and its tree.
+"""The Taxi domain of Han et al. (section 7.2): a grid world, its optimal policy, its tree.
 
-The idea
---------
-A taxi drives on a small grid. It must drive to a waiting passenger, ``pick up`` the passenger,
-drive to the destination and ``drop off`` the passenger there. Every action costs a little
-(the step cost), driving into a toll cell costs a lot more, and delivering the passenger earns a
-large reward. Written as a deterministic Markov Decision Process
-``MDP = (S, A, T, R, gamma, S0)``, the best behaviour is the policy ``pi*: S -> A`` that
-maximises the discounted sum of rewards; value iteration finds it.
+A taxi drives to a passenger, picks them up, drives to the destination and drops them
+off; every step costs a little, a toll cell a lot. Value iteration gives the optimal
+policy of this deterministic MDP, and a listener turns the actions the policy takes
+into a behavior tree with meaning: a goal, subgoals ("go pick up passenger"), steps
+("navigate to passenger") and actions ("move right"), cut where the kind of action
+switches. :func:`default_world` is built so that its optimal policy is the paper's
+Fig. 13 tree (a detour around the toll); :func:`human_expectation_policy` ignores the
+toll, as the surprised person of section 7.2.1 does, giving the shortest path. Rows
+and columns count from 1, row 1 at the bottom (see :func:`render_grid`).
 
-The paper's point is what comes next: a policy is a table, not an explanation. To explain it,
-the robot's behaviour is turned into a behavior tree whose nodes carry meaning -- a *goal*
-("go deliver passenger"), *subgoals* ("go pick up passenger", "go drop off passenger"),
-*steps* ("navigate to passenger", "pick up passenger") and *actions* ("move right"). The tree
-is built semi-automatically by a listener that watches the actions the policy takes and cuts
-the sequence where the kind of action switches: a run of moves followed by ``pick up`` becomes
-the step "navigate to passenger" of the subgoal "go pick up passenger", and a run of moves
-followed by ``drop off`` becomes "navigate to destination" of "go drop off passenger".
-
-The grid of :func:`default_world` stands in for the paper's Fig. 12: it is designed so that its
-optimal policy is exactly the paper's tree, with the toll at row 2, column 3. As in the figure,
-rows and columns are numbered from 1; row 1 is at the **bottom**, so ``move up`` adds 1 to the
-row and ``move right`` adds 1 to the column. ``T`` is the taxi's start, ``P`` the passenger,
-``D`` the destination, ``$`` the toll, and ``|`` or ``---`` a wall (see :func:`render_grid`)::
-
-         1    2    3    4
-       +----+----+----+----+
-     3 |         | P       |
-       +    +    +    +    +
-     2 |         | $       |
-       +    +    +    +    +
-     1 | TD                |
-       +----+----+----+----+
-
-A wall runs between columns 2 and 3 in rows 2 and 3, so from the left half the passenger can
-only be reached through row 1. The shortest way (4 moves: right, right, up, up) passes the toll
-at row 2, column 3. Avoiding the toll means driving on to column 4, up, and back left: 6 moves.
-One toll costs more than two extra steps, so the optimal policy detours both ways::
-
-    go pick up passenger:   move right x3, move up x2, move left, pick up
-    go drop off passenger:  move right, move down x2, move left x3, drop off
-
-This is exactly the tree of Fig. 13 (``taxi-domain-tree.xml`` in the paper's repository).
-
-Section 7.2.1 then asks why a person is surprised by that tree: a person would expect the
-short path through the toll, not understanding that one toll costs more than the extra steps.
-:func:`human_expectation_policy` models that person as value iteration on the same grid with
-the toll's cost ignored (the toll cells charge nothing), which makes the expected behaviour the
-shortest path by number of steps. Comparing the two trees shows where the divergence is.
-
-Running ``python -m btlog.domains.taxi_world > trees/taxi.xml`` (or with the argument ``human``
-for ``trees/taxi-human.xml``) writes the generated tree as BehaviorTree.CPP v4 XML.
+``python -m btlog.domains.taxi_world [human] > trees/taxi.xml`` writes the tree as
+BehaviorTree.CPP v4 XML.
 """
 
 from __future__ import annotations

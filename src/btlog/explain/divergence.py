@@ -1,35 +1,13 @@
 """Divergence between two behaviours: where does what one run did differ from another?
 
-The idea (Han et al., section 7.2.1)
-------------------------------------
-People form a mental model of a robot after watching it a few times. When the robot's
-behaviour and that model differ — the Taxi detours around a toll while a person expects it
-to drive straight through — the useful explanation is *where* they differ. A behavior
-tree makes this cheap: its subgoals cut a long behaviour into short, comparable pieces.
-For each subgoal we take the sequence of actions executed under it in both behaviours
-and compare the two sequences with the O(NP) algorithm of Wu, Manber, Myers and Miller
-(``btlog.algorithms.sequence_diff``): the edit distance counts the actions that would have
-to be removed or added to turn one into the other, the longest common subsequence (LCS)
-is what both agree on, and everything outside the LCS is a divergent action. As in the
-paper's Fig. 14, each divergent action is shown with its immediate parent, so that the
-reader sees which step of the subgoal changed.
-
-What a behaviour is
--------------------
-A behaviour is the list of *executed actions*: every activation of an execution node
-(action or condition), i.e. each transition of such a node out of IDLE, in event order.
-It can come from
-
-- a recording (``executed_actions``): the events are folded through a
-  ``StateProjection``, so that nodes inserted while running ("Can you …?") are known
-  with their parents and subgoals;
-- a tree alone (``nominal_actions``): the tree is run in memory with every leaf
-  succeeding at once, which gives its nominal sequence — what the tree does when nothing
-  goes wrong, e.g. a human's expected policy written as a tree.
-
-Actions are compared by their description ``d(n)`` (name, or type when nameless): the
-same step in two versions of a tree has the same description even when its uid moved.
-Subgoals are grouped by description too, in order of first appearance.
+A behaviour is its list of executed actions (each activation of an execution node, in
+event order). The tree's subgoals cut it into short pieces; for each subgoal the two
+action sequences are compared with the O(NP) algorithm (``btlog.algorithms``): what is
+outside the longest common subsequence is divergent, shown with its immediate parent
+as in the paper's Fig. 14 (section 7.2.1). Actions compare by description ``d(n)``, so
+the same step in two versions of a tree matches even when its uid moved. Where the
+behaviours come from is ``btlog.explain.behaviours``; the text is ``btlog.render``.
+See docs/design.md, "Divergence".
 """
 
 from __future__ import annotations

@@ -1,10 +1,10 @@
 """The read model as a Python API: open runs, the state at any moment, the timeline, SQL.
 
 ``open_runs(*paths)`` gives a ``RunDatabase``: one DuckDB connection in which every run
-is a *catalog* of its own (the ingested tables of design §5 plus the snapshots), and the
-main schema holds views named like the tables (``runs``, ``nodes``, ``transitions``,
-``blackboard``, ``ticks``, ``mutations``) that union all the runs, ``run_id`` in every
-row. Users write SQL against those views; ``Run`` objects query their own catalog.
+is a *catalog* of its own (the tables of docs/design.md, "The read model", plus the
+snapshots), and the main schema holds views named like the tables (``runs``, ``nodes``,
+``transitions``, ``blackboard``, ``ticks``, ``mutations``) that union all the runs,
+``run_id`` in every row. Users write SQL against those views; ``Run`` objects query their own catalog.
 
 **The cache.** Each recording's catalog is a DuckDB file in the user's cache folder,
 keyed by the recording's content (``btlog.replay.cache``), attached read-only so SQL

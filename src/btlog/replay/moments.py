@@ -1,6 +1,6 @@
 """Moments: what ``--at WHEN`` means, and how many events it covers.
 
-A moment names a point of a run (design §6). Whatever its form, it comes down to one
+A moment names a point of a run (docs/design.md, "Moments"). Whatever its form, it comes down to one
 number: how many events to apply. The state at a moment is the fold of the first
 ``count`` events (seq ``0 … count-1``); for a time ``t`` that is every event with
 ``t_ns <= t``, because event times never decrease along ``seq``.
