@@ -8,13 +8,13 @@ import signal
 import subprocess
 import sys
 import tempfile
-import time
 from collections.abc import Iterator
 from pathlib import Path
 
 import pytest
 
 from btlog.record.reader import open_recording
+from tests.waiting import wait_for_events
 
 ROOT = Path(__file__).resolve().parent.parent
 KITTING = ROOT / "trees" / "kitting.xml"
@@ -230,11 +230,10 @@ def test_kill_9_then_recover(tmp_path: Path) -> None:
         stdout=subprocess.DEVNULL,
         stderr=subprocess.DEVNULL,
     )
-    deadline = time.monotonic() + 30
-    while time.monotonic() < deadline and (not out.exists() or out.stat().st_size < 4000):
-        time.sleep(0.05)
-    time.sleep(0.5)
-    process.send_signal(signal.SIGKILL)
+    try:
+        wait_for_events(out, process, at_least=50)
+    finally:
+        process.send_signal(signal.SIGKILL)
     process.wait(timeout=10)
     broken = open_recording(out)
     assert broken.truncated
