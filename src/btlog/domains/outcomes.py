@@ -128,7 +128,7 @@ class Outcomes:
             raise OutcomesError(str(error)) from None
         outcomes = cls.from_mapping(data, str(path))
         outcomes.key_lines = {
-            path_[1]: line
+            str(path_[1]): line
             for path_, line in lines.items()
             if len(path_) == 2 and path_[0] == "nodes"
         }
