@@ -26,7 +26,7 @@ LAYERS = [
     ("btlog.replay",),
     ("btlog.explain",),
     ("btlog.render",),
-    ("btlog.runner",),
+    ("btlog.live_questions", "btlog.runner"),
     ("btlog.sources", "btlog.sinks"),
     ("btlog.checks",),
     ("btlog.view", "btlog.testing", "btlog.cli"),

@@ -3,6 +3,7 @@ given a real tree and the real state of a run (no CLI in between)."""
 
 from __future__ import annotations
 
+import copy
 from html.parser import HTMLParser
 
 import pytest
@@ -33,7 +34,8 @@ XML = """<root BTCPP_format="4">
 
 @pytest.fixture(scope="module")
 def moment() -> tuple[Tree, State]:
-    """The tree and state after two ticks: the Script ran, "boil water" is RUNNING."""
+    """The tree and state after two ticks: the Script ran, "boil water" is RUNNING (taken
+    before the executor's teardown resets every node)."""
     tree = load_tree_text(XML)
     outcomes = Outcomes.from_mapping({"default": {"status": "SUCCESS", "ticks": 3}})
     executor = Executor(tree, leaf_factory=scripted_leaf_factory(tree, outcomes))
@@ -42,9 +44,9 @@ def moment() -> tuple[Tree, State]:
     try:
         executor.tick()
         executor.tick()
+        return copy.deepcopy((projection.tree, projection.state))
     finally:
         executor.close()
-    return projection.tree, projection.state
 
 
 def test_tree_lines_draw_one_line_per_node_with_status_and_current(moment) -> None:

@@ -4,7 +4,8 @@
 is a *catalog* of its own (the tables of docs/design.md, "The read model", plus the
 snapshots), and the main schema holds views named like the tables (``runs``, ``nodes``,
 ``transitions``, ``blackboard``, ``ticks``, ``mutations``) that union all the runs,
-``run_id`` in every row. Users write SQL against those views; ``Run`` objects query their own catalog.
+``run_id`` in every row. Users write SQL against those views; ``Run`` objects query
+their own catalog.
 
 **The cache.** Each recording's catalog is a DuckDB file in the user's cache folder,
 keyed by the recording's content (``btlog.replay.cache``), attached read-only so SQL
