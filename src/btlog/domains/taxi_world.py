@@ -8,7 +8,17 @@ into a behavior tree with meaning: a goal, subgoals ("go pick up passenger"), st
 switches. :func:`default_world` is built so that its optimal policy is the paper's
 Fig. 13 tree (a detour around the toll); :func:`human_expectation_policy` ignores the
 toll, as the surprised person of section 7.2.1 does, giving the shortest path. Rows
-and columns count from 1, row 1 at the bottom (see :func:`render_grid`).
+and columns count from 1, row 1 at the bottom; ``T`` start, ``P`` passenger, ``D``
+destination, ``$`` toll (see :func:`render_grid`)::
+
+         1    2    3    4
+       +----+----+----+----+
+     3 |         | P       |
+       +    +    +    +    +
+     2 |         | $       |
+       +    +    +    +    +
+     1 | TD                |
+       +----+----+----+----+
 
 ``python -m btlog.domains.taxi_world [human] > trees/taxi.xml`` writes the tree as
 BehaviorTree.CPP v4 XML.
