@@ -27,7 +27,7 @@ LAYERS = [
     ("btlog.explain",),
     ("btlog.render",),
     ("btlog.live_questions", "btlog.runner"),
-    ("btlog.sources", "btlog.sinks"),
+    ("btlog.sources", "btlog.sinks", "btlog.fleet"),
     ("btlog.checks",),
     ("btlog.view", "btlog.testing", "btlog.cli"),
 ]
