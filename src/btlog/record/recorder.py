@@ -6,11 +6,14 @@ and ``on_write`` build one tuple each, and ``on_tick`` turns the tick's rows int
 ``/btlog/events`` message (orjson encodes the rows in one call). Grouping changes nothing
 for a reader: every row keeps its own ``seq``, ``t_ns`` and ``tick``.
 
-Crash safety comes from flushing by wall time: when ``flush_interval`` seconds have
-passed since the last flush, the tick records are written and the MCAP writer's chunk is
-closed and flushed to the file. Chunks are the unit a reader can recover from a cut file,
-so after ``kill -9`` at most the last interval is lost. ``close()`` writes the rest and the
-summary (the index that makes the file seekable).
+Crash safety comes from flushing by wall time: a tick flushes (the MCAP writer's chunk is
+closed and flushed to the file) when the *next* tick, expected as far away as the last
+one was, would come after ``flush_interval`` seconds since the last flush. Chunks are the
+unit a reader can recover from a cut file, so after ``kill -9`` at most the last interval
+is lost, also when ticks are paced to the wall clock. Tick records are written together
+with the events they end, in the same chunk, so a cut file never has events far ahead of
+its ticks. ``close()`` writes the rest and the summary (the index that makes the file
+seekable).
 
 What the file holds and how each message is laid out is ``btlog.record.format``.
 """
@@ -44,6 +47,7 @@ GROUP_EVENTS = 1024
 MAX_BUFFERED_EVENTS = 50_000
 #: The MCAP chunk size: a chunk is also closed when it grows past this many bytes.
 CHUNK_SIZE = 4 * 1024 * 1024
+_NEVER = 1 << 62
 XML_MEDIA_TYPE = "application/xml"
 
 _EPOCH = datetime(1970, 1, 1, tzinfo=UTC)
@@ -145,6 +149,8 @@ class Recorder(Subscriber):
         self.group_events = group_events
         self.flush_interval = flush_interval
         self.max_tick_events = max_tick_events
+        self.chunk_size = chunk_size
+        self._chunk_bytes = 0
         self.metadata = run_metadata(metadata)
         #: the run's start on the wall clock: each message's MCAP log_time is this plus
         #: the run's clock (``t_ns``), so players show the run at its own pace
@@ -157,13 +163,15 @@ class Recorder(Subscriber):
         self._tick_rows: list[tuple] = []
         self._file = open(self.path, "wb")  # noqa: SIM115
         try:
-            self._writer = Writer(self._file, chunk_size=chunk_size, compression=compression)
+            # Chunks end where the recorder decides (``_end_chunk_if_full``): never between
+            # a tick's events and its tick record.
+            self._writer = Writer(self._file, chunk_size=_NEVER, compression=compression)
             self._channels = self._start(tree, attachments)
         except BaseException:
             self._file.close()
             raise
         self._events_channel = self._channels[fmt.EVENTS_TOPIC]
-        self._last_flush = time.monotonic()
+        self._last_flush = self._last_tick_at = time.monotonic()
         if type(self).on_status is Recorder.on_status:  # a subclass's override wins
             self.on_status = self._status_appender()  # type: ignore[method-assign,assignment]
 
@@ -243,6 +251,7 @@ class Recorder(Subscriber):
             self._write_rows.clear()
             return
         self._write_events()
+        self._end_chunk_if_full()
         if time.monotonic() - self._last_flush >= self.flush_interval:
             self.flush()
 
@@ -259,10 +268,14 @@ class Recorder(Subscriber):
             self._write_ticks()
             self._add(fmt.TICKS_TOPIC, {"ticks": [row], "teardown": True}, end_ns)
             return
+        self._tick_rows.append(row)
         if len(self._status_rows) + len(self._write_rows) >= self.group_events:
             self._write_events(tick)
-        self._tick_rows.append(row)
-        if time.monotonic() - self._last_flush >= self.flush_interval:
+            self._write_ticks()
+            self._end_chunk_if_full()
+        now = time.monotonic()
+        gap, self._last_tick_at = now - self._last_tick_at, now
+        if now + gap - self._last_flush >= self.flush_interval:
             self.flush()
 
     # -- the rest ---------------------------------------------------------------------
@@ -302,7 +315,8 @@ class Recorder(Subscriber):
         self._write_events()
         self._write_ticks()
         self._writer.flush()
-        self._last_flush = time.monotonic()
+        self._chunk_bytes = 0
+        self._last_flush = self._last_tick_at = time.monotonic()
 
     def on_close(self) -> None:
         """Write what is pending and finish the file (summary and footer)."""
@@ -332,6 +346,13 @@ class Recorder(Subscriber):
         self.close()
 
     # -- writing ----------------------------------------------------------------------
+    def _end_chunk_if_full(self) -> None:
+        """Close the MCAP chunk (and write it to the file) once it holds ``chunk_size``
+        bytes of messages; called only where no tick is half written."""
+        if self._chunk_bytes >= self.chunk_size:
+            self._writer.flush()
+            self._chunk_bytes = 0
+
     def _write_events(self, tick: int | None = None) -> None:
         """One ``/btlog/events`` message with the buffered rows (``tick`` defaults to the
         last row's)."""
@@ -347,6 +368,7 @@ class Recorder(Subscriber):
         self._writer.add_message(
             self._events_channel, self.start_ns + last[1], data, time.time_ns()
         )
+        self._chunk_bytes += len(data)
         self.event_count += len(status) + len(writes)
         self.last_seq = last[0]
         status.clear()
@@ -359,6 +381,6 @@ class Recorder(Subscriber):
 
     def _add(self, topic: str, message: dict, t_ns: int) -> None:
         """Write one message whose log_time is the run's start plus ``t_ns``."""
-        self._writer.add_message(
-            self._channels[topic], self.start_ns + t_ns, fmt.dumps(message), time.time_ns()
-        )
+        data = fmt.dumps(message)
+        self._writer.add_message(self._channels[topic], self.start_ns + t_ns, data, time.time_ns())
+        self._chunk_bytes += len(data)
