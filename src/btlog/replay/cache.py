@@ -37,6 +37,10 @@ from btlog.replay.tables import INGEST_VERSION, create_schema
 SUFFIX = ".duckdb"
 #: The default size cap of the cache folder, in MB (``$BTLOG_CACHE_MAX_MB`` overrides).
 DEFAULT_MAX_MB = 2048
+#: Recordings smaller than this get a cache of 16 KiB blocks instead of DuckDB's 256 KiB:
+#: ~0.2 MB instead of ~2.5 MB for a 30 KB recording (big caches compress better in big
+#: blocks: 31 MB instead of 9.7 MB at 1M events).
+SMALL_RECORDING = 512 * 1024
 #: A temporary cache of a build in progress: ``.<name>.<pid>-<hex>.duckdb`` (+ ``.wal``).
 _TEMPORARY = re.compile(r"^\..+\.(\d+)-[0-9a-f]{8}\.duckdb(\.wal)?$")
 
@@ -177,7 +181,9 @@ def build(path: str, cache: Path, snapshot_every: int) -> ingestion.IngestReport
     temporary = cache.with_name(f".{cache.name}.{os.getpid()}-{uuid.uuid4().hex[:8]}{SUFFIX}")
     con = duckdb.connect()
     try:
-        con.execute("ATTACH $path AS cache_file", {"path": str(temporary)})
+        small = os.path.getsize(path) < SMALL_RECORDING
+        blocks = " (BLOCK_SIZE 16384)" if small else ""
+        con.execute(f"ATTACH $path AS cache_file{blocks}", {"path": str(temporary)})
         create_schema(con)
         report = ingestion.load_tables(con, path, snapshot_every=snapshot_every)
         with ThreadPoolExecutor(max_workers=1, thread_name_prefix="btlog-cache") as pool:
