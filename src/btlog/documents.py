@@ -13,6 +13,7 @@ checked by the code that uses the document.
 from __future__ import annotations
 
 import json
+import math
 import os
 from collections.abc import Iterable, Iterator
 from functools import cache
@@ -168,6 +169,11 @@ def complaint(
     if not candidates:
         return None
     path, message = _message(_narrowest(max(candidates, key=relevance)))
+    return _located(source, lines, path, message)
+
+
+def _located(source: str, lines: dict[KeyPath, int] | None, path: KeyPath, message: str) -> str:
+    """``file:line: key: message`` for the value at ``path``."""
     line_of = lines or {}
     line = next((line_of[path[:n]] for n in range(len(path), -1, -1) if path[:n] in line_of), 0)
     key = where(path)
@@ -178,10 +184,30 @@ def complaint(
 def validate(
     data: Any, schema_name: str, source: str, lines: dict[KeyPath, int] | None = None
 ) -> None:
-    """Raise ``DocumentError`` (file:line: key: message) when ``data`` breaks the schema."""
+    """Raise ``DocumentError`` (file:line: key: message) when ``data`` breaks the schema
+    or holds a number that is not finite (YAML's ``.nan``, ``.inf``: JSON Schema's bounds
+    do not catch NaN)."""
+    for path, value in _numbers(data):
+        if not math.isfinite(value):
+            raise DocumentError(
+                _located(source, lines, path, f"must be a finite number, got {value!r}")
+            )
     message = complaint(errors(data, schema_name), source, lines)
     if message is not None:
         raise DocumentError(message)
+
+
+def _numbers(data: Any) -> Iterator[tuple[KeyPath, float]]:
+    """Every float in ``data`` with its key path (iteratively: documents may be deep)."""
+    stack: list[tuple[KeyPath, Any]] = [((), data)]
+    while stack:
+        path, value = stack.pop()
+        if isinstance(value, float):
+            yield path, value
+        elif isinstance(value, dict):
+            stack.extend(((*path, k), v) for k, v in value.items())
+        elif isinstance(value, list):
+            stack.extend(((*path, i), v) for i, v in enumerate(value))
 
 
 def load(path: str | os.PathLike[str], schema_name: str, what: str) -> Any:

@@ -11,6 +11,7 @@ take ``--max-nodes`` and ``--max-file-size`` to raise (or lower) the first two.
 
 from __future__ import annotations
 
+import math
 import os
 import stat
 from dataclasses import dataclass, replace
@@ -28,6 +29,8 @@ MAX_SCRIPT_STRING = 16 * 1024 * 1024
 MAX_SCRIPT_CODE = 64 * 1024
 #: Nesting of parentheses and unary operators in one script.
 MAX_SCRIPT_NESTING = 64
+#: Any count, tick or seq given by a user, and any duration in ns: a signed 64-bit integer.
+MAX_INT64 = 2**63 - 1
 
 
 class LimitError(ValueError):
@@ -80,3 +83,20 @@ def read_bounded(path: str | os.PathLike, limit: int | None = None) -> bytes:
     if len(data) > limit:
         raise LimitError(f"file is larger than {limit} bytes (--max-file-size)")
     return data
+
+
+def seconds(value: object, what: str, positive: bool = False) -> float:
+    """``value`` if it is a finite number of seconds, >= 0 (> 0 when ``positive``),
+    whose nanoseconds fit in 64 bits; else ``LimitError`` naming ``what`` and the value
+    (NaN and infinities never reach an integer conversion)."""
+    number = value if isinstance(value, int | float) and not isinstance(value, bool) else None
+    bound = "> 0" if positive else ">= 0"
+    if (
+        number is None
+        or not math.isfinite(number)
+        or number < 0
+        or (positive and number == 0)
+        or number * 1e9 > MAX_INT64
+    ):
+        raise LimitError(f"{what}: expected a finite number of seconds {bound}, got {value!r}")
+    return float(number)

@@ -20,13 +20,19 @@ from datetime import UTC, datetime
 from pathlib import Path
 from typing import Any
 
-from btlog import SCHEMA_VERSION, __version__
+from btlog import SCHEMA_VERSION, __version__, limits
 from btlog.domains import make_domain
 from btlog.domains.outcomes import FailSpec, Outcomes, OutcomesError, ScriptedLeaf
 from btlog.executor.clock import SimClock, WallClock
 from btlog.executor.engine import Executor
+<<<<<<< HEAD
 from btlog.explain.questions import Answer
 from btlog.live_questions import LiveQuestion, LiveQuestionError, LiveQuestions
+=======
+from btlog.explain.questions import Answer, answer, parse_question
+from btlog.history import LiveHistory
+from btlog.outputs import refuse_overwrite
+>>>>>>> 5db89e0 (Bad values refused in one line: NaN/inf/negative seconds (--tick-period, --flush-interval, outcome durations), int/unsigned port ranges as BT.CPP (delay_msec=-1, 26-digit num_cycles; checked against behaviortreepy), outputs that are inputs (run -o, recover -o, show --html, import, export), SQL without a statement, argparse errors, recorded trees with duplicate/unknown uids or several roots)
 from btlog.record.recorder import Recorder
 from btlog.status import Status
 from btlog.tree.loader import load_nodes_model, load_tree
@@ -168,14 +174,18 @@ def execute(
         domain = make_domain(config.domain, config.seed)
     except ValueError as error:
         raise RunError(str(error)) from None
-    if config.tick_period <= 0:
-        raise RunError(f"--tick-period {config.tick_period}: must be > 0")
-    if config.max_ticks < 1:
-        raise RunError(f"--max-ticks {config.max_ticks}: must be at least 1")
+    try:
+        limits.seconds(config.tick_period, "--tick-period", positive=True)
+        limits.seconds(config.flush_interval, "--flush-interval", positive=True)
+    except limits.LimitError as error:
+        raise RunError(str(error)) from None
+    if not 1 <= config.max_ticks <= limits.MAX_INT64:
+        raise RunError(f"--max-ticks {config.max_ticks}: must be from 1 to {limits.MAX_INT64}")
     clock = WallClock(config.tick_period) if config.realtime else SimClock(config.tick_period)
     executor = Executor(tree, clock=clock, leaf_factory=domain.leaf_factory(tree, outcomes))
     run_id = uuid.uuid4().hex[:12]
     path = Path(output) if output else default_output(config.tree, run_id)
+    refuse_overwrite(path, [config.tree, *tree.files, config.outcomes_file])
     attachments = [(Path(f).name, Path(f).read_bytes()) for f in tree.files]
     metadata = config.to_metadata(tree, run_id, outcomes)
     recorder = Recorder(path, tree, metadata, attachments, flush_interval=config.flush_interval)

@@ -20,6 +20,7 @@ from btlog.explain.hierarchy import current_nodes
 from btlog.explain.insertion import apply_to_copy
 from btlog.explain.questions import Answer, answer
 from btlog.explain.questions import explain as explain_all
+from btlog.outputs import refuse_overwrite
 from btlog.render.escape import safe
 from btlog.render.terminal import blackboard_lines, format_ns, make_console, tree_lines
 from btlog.replay.moments import TICK, parse_moment
@@ -207,6 +208,8 @@ def _story(args: Namespace) -> int:
 
 def show(args: Namespace) -> int:
     """``btlog show``: the tree with each node's status at a moment."""
+    if args.html:
+        refuse_overwrite(args.html, [args.run], "--html")
     with _moment(args.run, args.at) as (run, tree, state, at_ns):
         current = {n.uid for n in current_nodes(tree, state)}
         answers = explain_all(tree, state, run.history()) if args.html else []
@@ -331,6 +334,7 @@ def recover(args: Namespace) -> int:
     """``btlog recover``: rewrite a truncated recording into a valid one."""
     from btlog.record.recover import recover as salvage
 
+    refuse_overwrite(args.output, [args.broken])
     report = salvage(args.broken, args.output)
     print(safe(report))
     return 0

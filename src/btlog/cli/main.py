@@ -14,6 +14,7 @@ import re
 import sys
 import traceback
 from collections.abc import Callable, Sequence
+from typing import NoReturn
 
 from btlog import __version__
 from btlog.cli.limit_flags import add_limit_flags, apply_limit_flags
@@ -30,6 +31,15 @@ class BadInput(Exception):
     """Raised by commands for bad input; the message is the one line shown."""
 
 
+class OneLineParser(argparse.ArgumentParser):
+    """An argument parser whose errors are one line on stderr (exit 2), like every other
+    bad input, instead of the usage followed by the error."""
+
+    def error(self, message: str) -> NoReturn:
+        """Print ``btlog CMD: error: …`` on one line and exit 2."""
+        self.exit(EXIT_BAD_INPUT, f"{self.prog}: error: {safe(message)} (see --help)\n")
+
+
 def _add_moment(parser: argparse.ArgumentParser, required: bool = True) -> None:
     parser.add_argument(
         "--at",
@@ -43,7 +53,7 @@ def _add_moment(parser: argparse.ArgumentParser, required: bool = True) -> None:
 
 def build_parser() -> argparse.ArgumentParser:
     """The argument parser of every command."""
-    parser = argparse.ArgumentParser(
+    parser = OneLineParser(
         prog="btlog", description="Record behavior-tree runs and explain any moment of them."
     )
     parser.add_argument("--version", action="version", version=f"btlog {__version__}")

@@ -8,6 +8,7 @@ from argparse import Namespace
 from pathlib import Path
 from typing import Any
 
+from btlog.outputs import refuse_overwrite
 from btlog.render.escape import safe
 from btlog.sources.builder import DEFAULT_TICK_GAP_NS, BuildResult
 from btlog.tree.registry import Registry
@@ -117,6 +118,8 @@ def import_(args: Namespace) -> int:
     kind = detect(args.file)
     registry, gap = _registry(args), _gap_ns(args)
     default = Path(args.output) if args.output else Path(Path(args.file).name).with_suffix(".mcap")
+    if args.output:
+        refuse_overwrite(args.output, [args.file, args.tree])
     if args.goal is not None and kind != "rosbag2-mcap":
         raise ValueError(f"{args.file}: --goal applies to Nav2 bags only")
     if kind == "rosbag2-mcap":
@@ -178,8 +181,7 @@ def export(args: Namespace) -> int:
     suffix, expects, holds = _EXPORTS[args.to]
     if Path(args.output).suffix != suffix:
         raise ValueError(f"{args.output}: {expects} the suffix {suffix}")
-    if Path(args.output).resolve() == Path(args.run).resolve():
-        raise ValueError(f"{args.output}: would overwrite the recording being exported")
+    refuse_overwrite(args.output, [args.run], "OUT")
     recording = open_recording(args.run)
     for warning in recording.warnings:
         print(f"btlog export: warning: {safe(warning)}", file=sys.stderr)

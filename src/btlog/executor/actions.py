@@ -177,7 +177,7 @@ class Sleep(StatefulAction):
     required_ports = ("msec",)
 
     def on_start(self) -> Status:
-        msec = self.get_input("msec", "int")
+        msec = self.get_input("msec", "unsigned")
         if msec <= 0:
             return SUCCESS
         self.deadline = self.runtime.clock.now_ns() + msec * 1_000_000

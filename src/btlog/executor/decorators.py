@@ -195,7 +195,7 @@ class Delay(_Timed):
     def tick(self) -> Status:
         clock = self.runtime.clock
         if self.deadline is None:
-            self.deadline = clock.now_ns() + self.get_input("delay_msec", "int") * 1_000_000
+            self.deadline = clock.now_ns() + self.get_input("delay_msec", "unsigned") * 1_000_000
             self.set_status(RUNNING)
         if clock.now_ns() < self.deadline:
             return RUNNING
@@ -214,7 +214,7 @@ class Timeout(_Timed):
     def tick(self) -> Status:
         clock = self.runtime.clock
         if self.deadline is None:
-            msec = self.get_input("msec", "int")
+            msec = self.get_input("msec", "unsigned")
             # As in BT.CPP, msec 0 starts no timer: the child is never timed out.
             self.deadline = clock.now_ns() + msec * 1_000_000 if msec > 0 else -1
             self.set_status(RUNNING)

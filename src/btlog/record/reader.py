@@ -35,7 +35,7 @@ from btlog.record.walk import (
     records,
     top_records,
 )
-from btlog.tree.model import Tree
+from btlog.tree.model import Tree, TreeDescriptionError
 
 
 def raw_records(path: str | os.PathLike, walk: Walk) -> Iterator[Any]:
@@ -261,7 +261,9 @@ def tree_of(name: str, message: dict | None) -> Tree:
         raise RecordingError(f"{name}: not a btlog recording: no {fmt.TREE_TOPIC} message")
     try:
         return Tree.from_description(message)
-    except (KeyError, TypeError, StopIteration) as error:
+    except TreeDescriptionError as error:
+        raise RecordingError(f"{name}: the {fmt.TREE_TOPIC} message: {error}") from None
+    except (KeyError, TypeError, ValueError) as error:
         raise RecordingError(
             f"{name}: the {fmt.TREE_TOPIC} message is not a tree: {type(error).__name__}: {error}"
         ) from None

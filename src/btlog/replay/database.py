@@ -327,6 +327,8 @@ class RunDatabase:
             cursor = (
                 self.con.execute(query, params) if params is not None else self.con.execute(query)
             )
+            if cursor is None:  # DuckDB's answer to a query without a statement
+                raise ReplayError(f"SQL error: no statement in {query!r}")
             columns = [d[0] for d in cursor.description or ()]
             rows = cursor.fetchall() if cursor.description else []
         except duckdb.Error as error:

@@ -18,6 +18,8 @@ from __future__ import annotations
 from collections.abc import Iterator
 from dataclasses import dataclass, field
 
+from btlog.limits import MAX_DEPTH
+
 CONTROL = "control"
 DECORATOR = "decorator"
 SUBTREE = "subtree"
@@ -151,6 +153,26 @@ def node_from_description(record: dict) -> Node:
     )
 
 
+class TreeDescriptionError(ValueError):
+    """A ``/btlog/tree`` message that does not describe one tree; one line."""
+
+
+def _check_uids(records: list[dict]) -> None:
+    """Every uid a distinct positive 32-bit integer; every parent uid one of them."""
+    seen: set[int] = set()
+    for record in records:
+        uid = record["uid"]
+        if not isinstance(uid, int) or isinstance(uid, bool) or not 0 < uid < 2**31:
+            raise TreeDescriptionError(f"uid {uid!r} is not an integer from 1 to 2**31-1")
+        if uid in seen:
+            raise TreeDescriptionError(f"uid {uid} is used by two nodes")
+        seen.add(uid)
+    for record in records:
+        parent = record["parent_uid"]
+        if parent is not None and parent not in seen:
+            raise TreeDescriptionError(f"node {record['uid']}'s parent uid {parent!r} is unknown")
+
+
 def link_nodes(records: list[dict]) -> list[Node]:
     """Rebuild nodes from records and link parents and children; returns them in order."""
     nodes = [node_from_description(r) for r in records]
@@ -237,12 +259,28 @@ class Tree:
 
     @classmethod
     def from_description(cls, message: dict) -> Tree:
-        """Rebuild a tree from its ``/btlog/tree`` message."""
-        nodes = link_nodes(message["nodes"])
-        root = next(n for n in nodes if n.parent is None)
-        return cls(
-            root=root, name=message.get("tree_name", "MainTree"), format=message.get("format", 4)
-        )
+        """Rebuild a tree from its ``/btlog/tree`` message, which may come from a crafted
+        file: ``TreeDescriptionError`` unless every uid is a distinct integer, one node is
+        the root, every parent exists and every node hangs from the root, at most
+        ``MAX_DEPTH`` levels down."""
+        records = message["nodes"]
+        _check_uids(records)
+        nodes = link_nodes(records)
+        roots = [n for n in nodes if n.parent is None]
+        if len(roots) != 1:
+            raise TreeDescriptionError(f"{len(roots)} nodes have no parent (one root expected)")
+        reached = 0
+        stack = [(roots[0], 0)]
+        while stack:
+            node, depth = stack.pop()
+            reached += 1
+            if depth > MAX_DEPTH:
+                raise TreeDescriptionError(f"node {node.uid} is deeper than {MAX_DEPTH} levels")
+            stack.extend((child, depth + 1) for child in node.children)
+        if reached != len(nodes):
+            raise TreeDescriptionError(f"{len(nodes) - reached} nodes do not hang from the root")
+        name, format_ = message.get("tree_name", "MainTree"), message.get("format", 4)
+        return cls(root=roots[0], name=name, format=format_)
 
     def copy_subtree(self, node: Node, first_uid: int) -> Node:
         """A deep copy of ``node``'s subtree with fresh uids from ``first_uid``, parentless."""

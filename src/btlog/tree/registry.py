@@ -114,8 +114,8 @@ def _builtins() -> dict[str, NodeType]:
         NodeType("RetryUntilSuccessful", DECORATOR, {"num_attempts": _in("int")}, children=one),
         NodeType("KeepRunningUntilFailure", DECORATOR, children=one),
         NodeType("RunOnce", DECORATOR, {"then_skip": _in("bool", "true")}, children=one),
-        NodeType("Delay", DECORATOR, {"delay_msec": _in("int")}, children=one),
-        NodeType("Timeout", DECORATOR, {"msec": _in("int")}, children=one),
+        NodeType("Delay", DECORATOR, {"delay_msec": _in("unsigned")}, children=one),
+        NodeType("Timeout", DECORATOR, {"msec": _in("unsigned")}, children=one),
         NodeType(
             "Precondition", DECORATOR, {"if": _in(), "else": _in("status", "FAILURE")}, children=one
         ),
@@ -128,7 +128,7 @@ def _builtins() -> dict[str, NodeType]:
             "SetBlackboard", ACTION, {"value": _in("any"), "output_key": PortSpec(INOUT, "str")}
         ),
         NodeType("UnsetBlackboard", ACTION, {"key": _in()}),
-        NodeType("Sleep", ACTION, {"msec": _in("int")}),
+        NodeType("Sleep", ACTION, {"msec": _in("unsigned")}),
     ]
     return {t.id: t for t in [*types, *_nav2_builtins()]}
 
