@@ -44,7 +44,7 @@ def test_outcome_durations_must_be_finite(small: Path, value: str) -> None:
     outcomes = small.parent / "outcomes.yaml"
     outcomes.write_text(f"nodes:\n  a: {{status: SUCCESS, duration: {value}}}\n")
     result = btlog("run", small.name, "--outcomes", outcomes.name, cwd=small.parent)
-    assert_bad_input(result, "outcomes.yaml", "duration", "finite number of seconds")
+    assert_bad_input(result, "outcomes.yaml:2", "duration", "must be a finite number")
 
 
 def test_outputs_never_overwrite_inputs(small: Path) -> None:
