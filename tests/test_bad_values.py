@@ -86,7 +86,7 @@ def test_sql_without_a_statement(small: Path, query: str) -> None:
         (["run", "t.xml", "--max-ticks", "many"], ["--max-ticks", "'many'"]),
         (["frobnicate"], ["btlog: error:", "frobnicate"]),
         (["sql", "--format", "xml", "r.mcap", "q"], ["--format"]),
-        (["explain", "r.mcap"], ["--at"]),
+        (["ask", "r.mcap"], ["--at", "QUESTION"]),
     ],
 )
 def test_argument_errors_are_one_line(tmp_path: Path, args: list[str], words: list[str]) -> None:
