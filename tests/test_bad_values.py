@@ -31,20 +31,25 @@ def small(tmp_path: Path) -> Path:
     return path
 
 
-@pytest.mark.parametrize("flag", ["--flush-interval", "--tick-period"])
-@pytest.mark.parametrize("value", ["nan", "inf", "-inf", "-1", "0", "1e300"])
+@pytest.mark.parametrize(
+    ("flag", "value"),
+    [
+        *[("--flush-interval", v) for v in ("nan", "inf", "-inf", "-1", "1e300")],
+        *[("--tick-period", v) for v in ("nan", "inf", "-inf", "-1", "0", "1e300")],
+    ],
+)
 def test_seconds_must_be_finite_and_positive(small: Path, flag: str, value: str) -> None:
     result = btlog("run", small.name, f"{flag}={value}", "-o", "r.mcap", cwd=small.parent)
     assert_bad_input(result, flag, "finite number of seconds")
     assert not (small.parent / "r.mcap").exists()
 
 
-@pytest.mark.parametrize("value", [".nan", ".inf", "-.inf", "1e300"])
+@pytest.mark.parametrize("value", [".nan", ".inf", "-.inf", "1.0e+300"])
 def test_outcome_durations_must_be_finite(small: Path, value: str) -> None:
     outcomes = small.parent / "outcomes.yaml"
     outcomes.write_text(f"nodes:\n  a: {{status: SUCCESS, duration: {value}}}\n")
     result = btlog("run", small.name, "--outcomes", outcomes.name, cwd=small.parent)
-    assert_bad_input(result, "outcomes.yaml:2", "duration", "must be a finite number")
+    assert_bad_input(result, "outcomes.yaml:2", "duration", "must be a", "finite")
 
 
 def test_outputs_never_overwrite_inputs(small: Path) -> None:

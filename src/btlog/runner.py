@@ -176,7 +176,7 @@ def execute(
         raise RunError(str(error)) from None
     try:
         limits.seconds(config.tick_period, "--tick-period", positive=True)
-        limits.seconds(config.flush_interval, "--flush-interval", positive=True)
+        limits.seconds(config.flush_interval, "--flush-interval")  # 0: every tick
     except limits.LimitError as error:
         raise RunError(str(error)) from None
     if not 1 <= config.max_ticks <= limits.MAX_INT64:
