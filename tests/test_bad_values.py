@@ -14,6 +14,7 @@ from btlog.domains.outcomes import Outcomes
 from btlog.record import Recorder
 from btlog.runner import RunConfig
 from btlog.tree.loader import load_tree_text
+from btlog.tree.model import Node
 from tests.oracle.runner import have_behaviortreepy, run_oracle
 from tests.test_cli import assert_bad_input, btlog
 
@@ -145,6 +146,12 @@ def _crafted(folder: Path, case: str, metadata: dict[str, str] | None = None) ->
     elif case == "unknown parent":
         second.parent = load_tree_text(SMALL).root.children[0]
         second.parent.uid = 99
+    elif case == "deep":
+        node = second
+        for uid in range(100, 350):
+            child = Node(uid=uid, type="Inverter", name="", kind="decorator", parent=node)
+            node.children.append(child)
+            node = child
     elif case == "two roots":
         second.parent = None  # still described under the root, but recorded parentless
     config = RunConfig(tree=str(folder / "small.xml"))
@@ -174,3 +181,9 @@ def test_recorded_nan_tick_period_is_refused_on_rerun(tmp_path: Path) -> None:
     path = _crafted(tmp_path, "sound", {"tick_period": "nan"})
     result = btlog("check", path.name, "--rerun", cwd=tmp_path)
     assert_bad_input(result, "--tick-period", "nan")
+
+
+def test_crafted_deep_tree_is_refused(tmp_path: Path) -> None:
+    path = _crafted(tmp_path, "deep")
+    result = btlog("explain", path.name, "--at", "end", cwd=tmp_path)
+    assert_bad_input(result, path.name, "/btlog/tree", "deeper than 200 levels")

@@ -198,3 +198,21 @@ def test_describing_many_siblings_is_linear() -> None:
     assert time.monotonic() - started < 5
     assert [r["idx"] for r in records[1:4]] == [0, 1, 2]
     assert records[-1]["idx"] == 99_999
+
+
+def test_yaml_alias_bombs_are_refused(tmp_path: Path) -> None:
+    tree_file = tmp_path / "small.xml"
+    tree_file.write_text(tree('<Action ID="Do" name="a"/>'))
+    levels = ['a: &a ["SUCCESS", "SUCCESS", "SUCCESS", "SUCCESS", "SUCCESS", "SUCCESS"]']
+    for index in range(1, 10):
+        name, previous = "abcdefghij"[index], "abcdefghij"[index - 1]
+        levels.append(f"{name}: &{name} [{', '.join([f'*{previous}'] * 6)}]")
+    bomb = tmp_path / "bomb.yaml"
+    bomb.write_text("\n".join([*levels, "nodes:", "  a: *j", ""]))
+    assert bomb.stat().st_size < 1000
+    result, seconds = btlog("run", tree_file.name, "--outcomes", bomb.name, cwd=tmp_path)
+    refused(result, seconds, "bomb.yaml", f"more than {limits.MAX_DOCUMENT_VALUES} values")
+    loop = tmp_path / "loop.yaml"
+    loop.write_text("nodes:\n  a: &x [SUCCESS, *x]\n")
+    result, seconds = btlog("run", tree_file.name, "--outcomes", loop.name, cwd=tmp_path)
+    refused(result, seconds, "loop.yaml:2", "refers to itself")

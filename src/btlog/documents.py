@@ -59,6 +59,39 @@ def _lines(node: yaml.Node, path: KeyPath, found: dict[KeyPath, int]) -> None:
             _lines(item, (*path, index), found)
 
 
+def _check_expanded(root: yaml.Node, name: str) -> None:
+    """Refuse a document whose aliases expand it past ``limits.MAX_DOCUMENT_VALUES``
+    values (a "billion laughs" of a few hundred bytes), or refer to themselves; counted
+    once per node, without expanding anything."""
+    cap = limits.MAX_DOCUMENT_VALUES
+    sizes: dict[int, int] = {}
+    path = {id(root)}
+    stack = [(root, iter(_children(root)))]
+    while stack:
+        node, pending = stack[-1]
+        child = next((c for c in pending if id(c) not in sizes), None)
+        if child is not None:
+            if id(child) in path:
+                line = child.start_mark.line + 1
+                raise DocumentError(f"{name}:{line}: a YAML alias refers to itself")
+            path.add(id(child))
+            stack.append((child, iter(_children(child))))
+            continue
+        stack.pop()
+        path.discard(id(node))
+        sizes[id(node)] = min(cap + 1, 1 + sum(sizes[id(c)] for c in _children(node)))
+    if sizes[id(root)] > cap:
+        raise DocumentError(f"{name}: more than {cap} values once its YAML aliases are expanded")
+
+
+def _children(node: yaml.Node) -> list[yaml.Node]:
+    if isinstance(node, yaml.MappingNode):
+        return [part for pair in node.value for part in pair]
+    if isinstance(node, yaml.SequenceNode):
+        return list(node.value)
+    return []
+
+
 def read(path: str | os.PathLike[str], what: str) -> tuple[Any, dict[KeyPath, int]]:
     """The data of a YAML (or ``.json``) file and the line of each key path in it.
 
@@ -78,13 +111,17 @@ def read(path: str | os.PathLike[str], what: str) -> tuple[Any, dict[KeyPath, in
             raise DocumentError(f"{name}:{error.lineno}: not valid JSON: {error.msg}") from None
     lines: dict[KeyPath, int] = {}
     try:
-        data = yaml.safe_load(text)
         node = yaml.compose(text, Loader=yaml.SafeLoader)
+        if node is not None:
+            _check_expanded(node, name)
+        data = yaml.safe_load(text)
     except yaml.YAMLError as error:
         mark = getattr(error, "problem_mark", None)
         line = f":{mark.line + 1}" if mark is not None else ""
         problem = getattr(error, "problem", None) or str(error).splitlines()[0]
         raise DocumentError(f"{name}{line}: not valid YAML: {problem}") from None
+    except RecursionError:
+        raise DocumentError(f"{name}: not valid YAML: nested too deeply") from None
     if node is not None:
         _lines(node, (), lines)
     return data, lines
