@@ -187,3 +187,13 @@ def test_crafted_deep_tree_is_refused(tmp_path: Path) -> None:
     path = _crafted(tmp_path, "deep")
     result = btlog("explain", path.name, "--at", "end", cwd=tmp_path)
     assert_bad_input(result, path.name, "/btlog/tree", "deeper than 200 levels")
+
+
+@pytest.mark.parametrize(
+    "when", ["tick:99999999999999999999999", "seq:9223372036854775808", "99999999999999999999s"]
+)
+def test_moments_past_64_bits_are_refused_before_running(small: Path, when: str) -> None:
+    args = ["--ask", f"{when}=What are you doing?", "-o", "r.mcap"]
+    result = btlog("run", small.name, *args, cwd=small.parent)
+    assert_bad_input(result, when, "out of range")
+    assert not (small.parent / "r.mcap").exists()

@@ -25,14 +25,9 @@ from btlog.domains import make_domain
 from btlog.domains.outcomes import FailSpec, Outcomes, OutcomesError, ScriptedLeaf
 from btlog.executor.clock import SimClock, WallClock
 from btlog.executor.engine import Executor
-<<<<<<< HEAD
 from btlog.explain.questions import Answer
 from btlog.live_questions import LiveQuestion, LiveQuestionError, LiveQuestions
-=======
-from btlog.explain.questions import Answer, answer, parse_question
-from btlog.history import LiveHistory
 from btlog.outputs import refuse_overwrite
->>>>>>> 5db89e0 (Bad values refused in one line: NaN/inf/negative seconds (--tick-period, --flush-interval, outcome durations), int/unsigned port ranges as BT.CPP (delay_msec=-1, 26-digit num_cycles; checked against behaviortreepy), outputs that are inputs (run -o, recover -o, show --html, import, export), SQL without a statement, argparse errors, recorded trees with duplicate/unknown uids or several roots)
 from btlog.record.recorder import Recorder
 from btlog.status import Status
 from btlog.tree.loader import load_nodes_model, load_tree

@@ -34,6 +34,8 @@ from collections.abc import Callable, Sequence
 from dataclasses import dataclass
 from datetime import UTC, datetime
 
+from btlog.limits import MAX_INT64
+
 TIME = "time"
 BEFORE_END = "before_end"
 TICK = "tick"
@@ -138,10 +140,10 @@ def parse_moment(text: str | Moment) -> Moment:
         return Moment(END, 0, text)
     counter = _COUNTER.match(value.lower())
     if counter:
-        return Moment(counter["kind"], int(counter["number"]), text)
+        return _in_range(Moment(counter["kind"], _integer(counter["number"], text), text))
     duration = _DURATION.match(value)
     if duration:
-        return _duration(duration, text)
+        return _in_range(_duration(duration, text))
     if _ISO_HINT.match(value):
         return _wall(value, text)
     raise MomentError(
@@ -150,11 +152,26 @@ def parse_moment(text: str | Moment) -> Moment:
     )
 
 
+def _integer(digits: str, text: str) -> int:
+    """The digits' value; more digits than any 64-bit count are refused before ``int``."""
+    if len(digits.lstrip("0")) > len(str(MAX_INT64)):
+        raise MomentError(f"moment {text!r} is out of range (at most {MAX_INT64})")
+    return int(digits)
+
+
+def _in_range(moment: Moment) -> Moment:
+    """A tick, seq or time past what 64 bits count is refused, not answered at the end."""
+    if moment.value > MAX_INT64:
+        raise MomentError(f"moment {moment.text!r} is out of range (at most {MAX_INT64})")
+    return moment
+
+
 def _duration(match: re.Match, text: str) -> Moment:
     number = match["number"]
     whole, _, fraction = number.partition(".")
     scale = _UNITS[match["unit"] or ""]
-    ns = int(whole or "0") * scale
+    ns = _integer(whole or "0", text) * scale
+    fraction = fraction[:30]  # digits far below a nanosecond change nothing
     if fraction:
         denominator = 10 ** len(fraction)
         ns += (int(fraction) * scale + denominator // 2) // denominator
