@@ -15,7 +15,14 @@ SRC = Path(__file__).resolve().parents[1] / "src" / "btlog"
 #: The layers in data-flow order (docs/design.md, "Layout"); a module imports only its own
 #: layer and the layers before it.
 LAYERS = [
-    ("btlog.status", "btlog.limits", "btlog.errors", "btlog.schema", "btlog.documents"),
+    (
+        "btlog.status",
+        "btlog.limits",
+        "btlog.errors",
+        "btlog.schema",
+        "btlog.documents",
+        "btlog.outputs",
+    ),
     ("btlog.algorithms",),
     ("btlog.tree",),
     ("btlog.events",),
