@@ -15,15 +15,17 @@ import subprocess
 import sys
 import threading
 import time
-from concurrent.futures import ThreadPoolExecutor
+from collections.abc import Callable
+from concurrent.futures import Future, ThreadPoolExecutor
 from pathlib import Path
+from typing import Any
 
 import pytest
 
 from btlog.events import StatusChange
 from btlog.record.reader import open_recording
 from btlog.sources.builder import RecordingBuilder
-from btlog.sources.groot2 import AttachHooks, AttachOptions, attach
+from btlog.sources.groot2 import AttachHooks, AttachOptions, AttachResult, attach
 from tests.oracle.random_trees import generate
 from tests.oracle.runner import have_behaviortreepy, run_oracle, tick_boundaries
 from tests.test_cli import ROOT, assert_bad_input, btlog
@@ -46,11 +48,44 @@ def _free_port_pair() -> int:
     raise RuntimeError("no free port pair")
 
 
-def _wait_for(path: Path, timeout: float = 30) -> None:
+class _OracleDied(Exception):
+    """BT.CPP's process ended (crashed, or hung and was killed) before the handshake."""
+
+
+def _wait_for(path: Path, oracle: Future[Any], timeout: float = 70) -> None:
+    """Wait until the oracle creates ``path``; raise ``_OracleDied`` if it ends first.
+
+    The oracle's own timeout (60 s) bounds the wait when BT.CPP hangs.
+    """
     deadline = time.monotonic() + timeout
     while not path.exists():
+        if oracle.done():
+            raise _OracleDied(f"BT.CPP ended before {path.name}: {oracle.result()!r:.300}")
         assert time.monotonic() < deadline, f"{path.name} never appeared"
         time.sleep(0.005)
+
+
+ATTEMPTS = 3
+
+
+def _with_btcpp_retries(tmp_path: Path, attempt: Callable[[Path], None]) -> None:
+    """Run ``attempt`` in a fresh folder, again when BT.CPP's process died under it.
+
+    The Groot2 publisher runs in a BT.CPP thread beside the ticking one; on a rare
+    schedule the process crashes or hangs there (seen once in CI, never reproduced
+    here). Such a run says nothing about btlog, so it is retried; any other failure is
+    not, and three deaths in a row fail the test.
+    """
+    deaths = []
+    for number in range(ATTEMPTS):
+        folder = tmp_path / f"attempt{number}"
+        folder.mkdir()
+        try:
+            attempt(folder)
+            return
+        except _OracleDied as died:
+            deaths.append(str(died))
+    pytest.fail(f"BT.CPP's process died in all {ATTEMPTS} attempts: {deaths}")
 
 
 class _Polled(AttachHooks):
@@ -61,46 +96,57 @@ class _Polled(AttachHooks):
         self.event.set()
 
 
-@pytest.mark.parametrize("seed", [7001, 7002, 7003])
-def test_attach_records_btcpp_transition_for_transition(tmp_path: Path, seed: int) -> None:
-    case = generate(seed)
+def _attach_to_btcpp(
+    folder: Path, payload: dict[str, Any], options: AttachOptions
+) -> tuple[AttachResult, dict[str, Any], Path]:
+    """Serve ``payload`` from BT.CPP, attach, run it to the end; (ours, theirs, recording)."""
     port = _free_port_pair()
-    sync = tmp_path / "sync"
+    sync = folder / "sync"
     sync.mkdir()
-    payload = {
-        **dataclasses.asdict(case),
-        "groot2_port": port,
-        "sync_dir": str(sync),
-        "tick_sleep_ms": 8,
-    }
-    out = tmp_path / "live.mcap"
+    payload = {**payload, "groot2_port": port, "sync_dir": str(sync)}
+    out = folder / "live.mcap"
     stop, polled = threading.Event(), _Polled()
-    options = AttachOptions(poll_interval=0.005, tick_gap_ns=3_000_000)
     with ThreadPoolExecutor(max_workers=2) as pool:
         oracle = pool.submit(run_oracle, payload, 60)
-        _wait_for(sync / "ready")
-        attached = pool.submit(
-            attach, f"tcp://127.0.0.1:{port}", out, options, hooks=polled, stop=stop
-        )
-        assert polled.event.wait(10), "attach never polled"
-        (sync / "go").touch()
-        _wait_for(sync / "ran")
-        stop.set()
+        try:
+            _wait_for(sync / "ready", oracle)
+            attached = pool.submit(
+                attach, f"tcp://127.0.0.1:{port}", out, options, hooks=polled, stop=stop
+            )
+            assert polled.event.wait(10), "attach never polled"
+            (sync / "go").touch()
+            _wait_for(sync / "ran", oracle)
+        finally:
+            stop.set()
+            (sync / "quit").touch()
         result = attached.result(timeout=20)
-        (sync / "quit").touch()
         theirs = oracle.result(timeout=30)
-    assert theirs is not None and not theirs["error"], theirs
-    assert result.full_polls == 0 and not result.build.warnings
-    recording = open_recording(out)
-    names = {n.uid: n.name for n in recording.tree}
-    ours = [
-        [e.tick, names[e.uid], e.prev.name, e.status.name]
-        for e in recording.events
-        if isinstance(e, StatusChange)
-    ]
-    assert [r[1:] for r in ours] == [t[1:] for t in theirs["transitions"]]
-    assert tick_boundaries(theirs["transitions"]) <= tick_boundaries(ours)  # every tick is found
-    assert recording.metadata["source"]["format"] == "groot2"
+    if theirs is None:
+        raise _OracleDied("BT.CPP's process ended without a result")
+    return result, theirs, out
+
+
+@pytest.mark.parametrize("seed", [7001, 7002, 7003])
+def test_attach_records_btcpp_transition_for_transition(tmp_path: Path, seed: int) -> None:
+    payload = {**dataclasses.asdict(generate(seed)), "tick_sleep_ms": 8}
+    options = AttachOptions(poll_interval=0.005, tick_gap_ns=3_000_000)
+
+    def attempt(folder: Path) -> None:
+        result, theirs, out = _attach_to_btcpp(folder, payload, options)
+        assert not theirs["error"], theirs
+        assert result.full_polls == 0 and not result.build.warnings
+        recording = open_recording(out)
+        names = {n.uid: n.name for n in recording.tree}
+        ours = [
+            [e.tick, names[e.uid], e.prev.name, e.status.name]
+            for e in recording.events
+            if isinstance(e, StatusChange)
+        ]
+        assert [r[1:] for r in ours] == [t[1:] for t in theirs["transitions"]]
+        assert tick_boundaries(theirs["transitions"]) <= tick_boundaries(ours)  # every tick
+        assert recording.metadata["source"]["format"] == "groot2"
+
+    _with_btcpp_retries(tmp_path, attempt)
 
 
 def test_attach_to_a_port_nobody_serves_fails_within_5_s(tmp_path: Path) -> None:
@@ -112,37 +158,52 @@ def test_attach_to_a_port_nobody_serves_fails_within_5_s(tmp_path: Path) -> None
     assert_bad_input(btlog("attach", "localhost:1667", "-o", "x.mcap"), "tcp://HOST:PORT")
 
 
+ATTACH_COMMAND = [sys.executable, "-m", "btlog.cli.main", "attach"]
+ATTACH_ENV = {**os.environ, "PYTHONPATH": str(ROOT / "src"), "NO_COLOR": "1"}
+
+
 def test_attach_cli_answers_live_and_records_blackboard_changes(tmp_path: Path) -> None:
-    case = generate(7001)
-    port = _free_port_pair()
-    sync = tmp_path / "sync"
-    sync.mkdir()
-    payload = {**dataclasses.asdict(case), "groot2_port": port, "sync_dir": str(sync)}
-    payload["tick_sleep_ms"] = 30
-    out = tmp_path / "live.mcap"
-    env = {**os.environ, "PYTHONPATH": str(ROOT / "src"), "NO_COLOR": "1"}
-    command = [sys.executable, "-m", "btlog.cli.main", "attach", f"tcp://127.0.0.1:{port}"]
-    command += ["-o", str(out), "--blackboard", "--ask", "tick:1=What are you doing?"]
-    with ThreadPoolExecutor(max_workers=1) as pool:
-        oracle = pool.submit(run_oracle, payload, 60)
-        _wait_for(sync / "ready")
-        proc = subprocess.Popen(command, env=env, stdout=subprocess.PIPE, text=True)
-        assert proc.stdout is not None
-        assert proc.stdout.readline().startswith("attached to")
-        (sync / "go").touch()
-        _wait_for(sync / "ran")
-        time.sleep(0.2)  # a blackboard poll after the last tick
-        proc.send_signal(signal.SIGINT)  # Ctrl-C finishes the file cleanly
-        rest = proc.communicate(timeout=20)[0]
-        (sync / "quit").touch()
-        assert oracle.result(timeout=30) is not None
-    assert proc.returncode == 0
-    assert "[tick:1] What are you doing?" in rest
-    recording = open_recording(out)
-    assert not recording.truncated
-    assert [a["question"] for a in recording.answers] == ["What are you doing?"]
-    writes = {(e.scope, e.key): e.value for e in recording.events if hasattr(e, "key")}
-    assert writes.get(("", "x")) is not None and writes.get(("", "v")) is not None
+    def attempt(folder: Path) -> None:
+        port = _free_port_pair()
+        sync = folder / "sync"
+        sync.mkdir()
+        payload = {**dataclasses.asdict(generate(7001)), "groot2_port": port}
+        payload |= {"sync_dir": str(sync), "tick_sleep_ms": 30}
+        out = folder / "live.mcap"
+        command = [*ATTACH_COMMAND, f"tcp://127.0.0.1:{port}", "-o", str(out), "--blackboard"]
+        command += ["--ask", "tick:1=What are you doing?"]
+        proc: subprocess.Popen[Any] | None = None
+        with ThreadPoolExecutor(max_workers=1) as pool:
+            oracle = pool.submit(run_oracle, payload, 60)
+            try:
+                _wait_for(sync / "ready", oracle)
+                proc = subprocess.Popen(command, env=ATTACH_ENV, stdout=subprocess.PIPE, text=True)
+                assert proc.stdout is not None
+                assert proc.stdout.readline().startswith("attached to")
+                (sync / "go").touch()
+                _wait_for(sync / "ran", oracle)
+                time.sleep(0.2)  # a blackboard poll after the last tick
+            except _OracleDied:
+                if proc is not None:
+                    proc.kill()
+                    proc.wait(timeout=10)
+                raise
+            finally:
+                (sync / "quit").touch()
+            assert proc is not None
+            proc.send_signal(signal.SIGINT)  # Ctrl-C finishes the file cleanly
+            rest = proc.communicate(timeout=20)[0]
+            if oracle.result(timeout=30) is None:
+                raise _OracleDied("BT.CPP's process ended without a result")
+        assert proc.returncode == 0
+        assert "[tick:1] What are you doing?" in rest
+        recording = open_recording(out)
+        assert not recording.truncated
+        assert [a["question"] for a in recording.answers] == ["What are you doing?"]
+        writes = {(e.scope, e.key): e.value for e in recording.events if hasattr(e, "key")}
+        assert writes.get(("", "x")) is not None and writes.get(("", "v")) is not None
+
+    _with_btcpp_retries(tmp_path, attempt)
 
 
 BURST_XML = """<root BTCPP_format="4" main_tree_to_execute="Main">
@@ -155,56 +216,53 @@ BURST_XML = """<root BTCPP_format="4" main_tree_to_execute="Main">
 
 
 def test_attach_reports_transitions_lost_beyond_btcpps_buffer(tmp_path: Path) -> None:
-    port = _free_port_pair()
-    sync = tmp_path / "sync"
-    sync.mkdir()
     payload = {"xml": BURST_XML, "outcomes": {}, "max_ticks": 1}
-    payload |= {"groot2_port": port, "sync_dir": str(sync)}
-    stop, polled = threading.Event(), _Polled()
-    options = AttachOptions(poll_interval=0.05)
-    with ThreadPoolExecutor(max_workers=2) as pool:
-        oracle = pool.submit(run_oracle, payload, 60)
-        _wait_for(sync / "ready")
-        attached = pool.submit(
-            attach, f"tcp://127.0.0.1:{port}", tmp_path / "b.mcap", options, hooks=polled, stop=stop
-        )
-        assert polled.event.wait(10)
-        (sync / "go").touch()  # one tick: 400 cycles, 2,800 transitions at once
-        _wait_for(sync / "ran")
-        stop.set()
-        result = attached.result(timeout=20)
-        (sync / "quit").touch()
-        theirs = oracle.result(timeout=30)
-    assert theirs is not None and len(theirs["transitions"]) > 2500
-    assert result.full_polls >= 1
-    assert any("may be lost" in w for w in result.build.warnings)
-    assert result.build.transitions <= 1000 * result.full_polls + 1000
+
+    def attempt(folder: Path) -> None:
+        # one tick: 400 cycles, 2,800 transitions at once
+        result, theirs, _ = _attach_to_btcpp(folder, payload, AttachOptions(poll_interval=0.05))
+        assert len(theirs["transitions"]) > 2500
+        assert result.full_polls >= 1
+        assert any("may be lost" in w for w in result.build.warnings)
+        assert result.build.transitions <= 1000 * result.full_polls + 1000
+
+    _with_btcpp_retries(tmp_path, attempt)
 
 
 def test_attach_killed_leaves_a_readable_prefix(tmp_path: Path) -> None:
-    port = _free_port_pair()
-    sync = tmp_path / "sync"
-    sync.mkdir()
     busy = """<root BTCPP_format="4"><BehaviorTree ID="Main">
       <KeepRunningUntilFailure name="forever"><AlwaysSuccess name="beat"/></KeepRunningUntilFailure>
     </BehaviorTree></root>"""
-    payload = {"xml": busy, "outcomes": {}, "max_ticks": 100, "tick_sleep_ms": 20}
-    payload |= {"groot2_port": port, "sync_dir": str(sync)}
-    out = tmp_path / "killed.mcap"
-    env = {**os.environ, "PYTHONPATH": str(ROOT / "src"), "NO_COLOR": "1"}
-    command = [sys.executable, "-m", "btlog.cli.main", "attach", f"tcp://127.0.0.1:{port}"]
-    with ThreadPoolExecutor(max_workers=1) as pool:
-        oracle = pool.submit(run_oracle, payload, 60)
-        _wait_for(sync / "ready")
-        proc = subprocess.Popen([*command, "-o", str(out)], env=env, stdout=subprocess.PIPE)
-        assert proc.stdout is not None and proc.stdout.readline().startswith(b"attached to")
-        (sync / "go").touch()
-        time.sleep(1.6)  # past one flush interval
-        proc.kill()
-        proc.wait(timeout=10)
-        _wait_for(sync / "ran")
-        (sync / "quit").touch()
-        assert oracle.result(timeout=30) is not None
-    recording = open_recording(out)
-    assert recording.truncated
-    assert len(recording.events) > 20  # a second of beats, at least
+
+    def attempt(folder: Path) -> None:
+        port = _free_port_pair()
+        sync = folder / "sync"
+        sync.mkdir()
+        payload = {"xml": busy, "outcomes": {}, "max_ticks": 100, "tick_sleep_ms": 20}
+        payload |= {"groot2_port": port, "sync_dir": str(sync)}
+        out = folder / "killed.mcap"
+        command = [*ATTACH_COMMAND, f"tcp://127.0.0.1:{port}", "-o", str(out)]
+        proc: subprocess.Popen[Any] | None = None
+        with ThreadPoolExecutor(max_workers=1) as pool:
+            oracle = pool.submit(run_oracle, payload, 60)
+            try:
+                _wait_for(sync / "ready", oracle)
+                proc = subprocess.Popen(command, env=ATTACH_ENV, stdout=subprocess.PIPE)
+                assert proc.stdout is not None
+                assert proc.stdout.readline().startswith(b"attached to")
+                (sync / "go").touch()
+                time.sleep(1.6)  # past one flush interval
+                proc.kill()
+                proc.wait(timeout=10)
+            finally:
+                if proc is not None and proc.poll() is None:
+                    proc.kill()
+                (sync / "quit").touch()
+            _wait_for(sync / "ran", oracle)
+            if oracle.result(timeout=30) is None:
+                raise _OracleDied("BT.CPP's process ended without a result")
+        recording = open_recording(out)
+        assert recording.truncated
+        assert len(recording.events) > 20  # a second of beats, at least
+
+    _with_btcpp_retries(tmp_path, attempt)
