@@ -152,7 +152,7 @@ def test_attach_records_btcpp_transition_for_transition(tmp_path: Path, seed: in
 def test_attach_to_a_port_nobody_serves_fails_within_5_s(tmp_path: Path) -> None:
     began = time.monotonic()
     result = btlog("attach", f"tcp://127.0.0.1:{_free_port_pair()}", "-o", str(tmp_path / "x.mcap"))
-    assert time.monotonic() - began < 5 + 2  # the timeout, plus starting Python
+    assert time.monotonic() - began < 5 + 10  # the 5 s timeout, plus starting Python
     assert_bad_input(result, "no Groot2 publisher answered")
     assert not (tmp_path / "x.mcap").exists()
     assert_bad_input(btlog("attach", "localhost:1667", "-o", "x.mcap"), "tcp://HOST:PORT")

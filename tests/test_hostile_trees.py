@@ -104,8 +104,7 @@ def test_dev_zero_is_refused_at_once(tmp_path: Path, where: str) -> None:
         target = str(tmp_path / "includes.xml")
         Path(target).write_text(tree("<AlwaysSuccess/>", '<include path="/dev/zero"/>'))
     result, seconds = btlog("validate", target, cwd=tmp_path)
-    refused(result, seconds, "not a regular file")
-    assert seconds < 5
+    refused(result, seconds, "not a regular file")  # at once: well before the timeout
 
 
 def test_fifo_is_refused_without_waiting_for_a_writer(tmp_path: Path) -> None:
@@ -195,7 +194,7 @@ def test_describing_many_siblings_is_linear() -> None:
     loaded = load_tree_text(tree("<Sequence>" + "<AlwaysSuccess/>" * 100_000 + "</Sequence>"))
     started = time.monotonic()
     records = loaded.describe()["nodes"]
-    assert time.monotonic() - started < 5
+    assert time.monotonic() - started < SECONDS  # quadratic would take hours
     assert [r["idx"] for r in records[1:4]] == [0, 1, 2]
     assert records[-1]["idx"] == 99_999
 
