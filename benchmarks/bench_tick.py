@@ -52,6 +52,8 @@ from btlog.tree.loader import load_tree_text
 FALLBACKS = 7
 FAILURES_PER_FALLBACK = 5
 TARGET_RATIO = 5.0
+#: btlog executing and recording (issue 16), against py_trees' plain tick
+RECORDING_TARGET_RATIO = 6.0
 
 
 def tree_xml() -> str:
@@ -219,8 +221,10 @@ def main(argv: list[str] | None = None) -> int:
     )
     recording_ratio = rates["btlog + full recording"] / rates["py_trees"]
     print(
-        f"btlog with full recording / py_trees: {recording_ratio:.2f}x  (target >= 3x: "
-        f"{'met' if recording_ratio >= 3 else 'NOT met'}; {events_per_tick:.0f} events/tick, "
+        f"btlog with full recording / py_trees: {recording_ratio:.2f}x  "
+        f"(target >= {RECORDING_TARGET_RATIO:g}x: "
+        f"{'met' if recording_ratio >= RECORDING_TARGET_RATIO else 'NOT met'}; "
+        f"{events_per_tick:.0f} events/tick, "
         f"{rates['btlog + full recording'] * events_per_tick:,.0f} events/s recorded)"
     )
     if btcpp is not None:

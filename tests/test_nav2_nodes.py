@@ -528,7 +528,7 @@ def test_speed_controller_scales_its_period_with_the_speed() -> None:
     h.set(child=SUCCESS)
     assert h.tick() is SUCCESS  # t=0: the first tick
     assert h.statuses("child") == [IDLE]
-    h.clock._now = 500_000_000  # half a period later
+    h.clock.t_ns = 500_000_000  # half a period later
     assert h.node.execute_tick() is RUNNING
     h.set(child=SUCCESS)
     assert h.tick() is SUCCESS  # t=1: the period passed; the next is 1/0.5014 s

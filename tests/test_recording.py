@@ -27,6 +27,7 @@ import btlog
 from btlog.domains.outcomes import Outcomes, scripted_leaf_factory
 from btlog.events import BlackboardWrite, EventLog, StatusChange, TreeMutation
 from btlog.executor.actions import SyncAction
+from btlog.executor.clock import SimClock, WallClock
 from btlog.executor.engine import Executor
 from btlog.record import (
     Recorder,
@@ -248,6 +249,7 @@ ENDLESS_XML = """<root BTCPP_format="4"><BehaviorTree ID="MainTree">
 ENDLESS_RUN = """
 import sys
 from btlog.domains.outcomes import Outcomes, scripted_leaf_factory
+from btlog.executor.clock import SimClock, WallClock
 from btlog.executor.engine import Executor
 from btlog.record import Recorder
 from btlog.tree.loader import load_tree_text
@@ -515,3 +517,50 @@ def test_status_rows_use_status_names(kitting_file):
         event.prev.name,
         event.status.name,
     ]
+
+
+SMALL_TREE = (
+    '<root BTCPP_format="4" main_tree_to_execute="Main"><BehaviorTree ID="Main">'
+    '<Sequence name="root"><Script name="init" code="n := 0"/><Fallback name="f">'
+    '<AlwaysFailure name="no"/><Script name="count" code="n := n + 1"/></Fallback>'
+    '<AlwaysSuccess name="yes"/></Sequence></BehaviorTree></root>'
+)
+
+
+@pytest.mark.parametrize("clock", ["simulated", "wall"])
+def test_a_recorder_alone_records_what_the_executor_emits(tmp_path, clock):
+    """A recorder as the only subscriber takes the executor's row fast path (status rows
+    appended by the executor itself); what it records is what ``on_status`` would see."""
+
+    def executor() -> Executor:
+        chosen = SimClock(0.01) if clock == "simulated" else WallClock(0.01, paced=False)
+        return Executor(load_tree_text(SMALL_TREE), clock=chosen)
+
+    recorded, logged = executor(), executor()
+    recorder = Recorder(tmp_path / "alone.mcap", recorded.tree, METADATA)
+    recorded.subscribe(recorder)
+    assert recorder.status_rows() is not None
+    log = EventLog()
+    logged.subscribe(log)
+    for _ in range(7):
+        recorded.tick()
+        logged.tick()
+    recorded.close()
+    logged.close()
+    events = open_recording(tmp_path / "alone.mcap").events
+    assert [e.seq for e in events] == list(range(len(log.events)))
+    assert any(isinstance(e, BlackboardWrite) for e in events)
+    if clock == "simulated":
+        assert events == log.events
+    else:  # wall times differ between the two runs; everything else is the same
+        assert [e._replace(t_ns=0) for e in events] == [e._replace(t_ns=0) for e in log.events]
+        times = [e.t_ns for e in events]
+        assert times == sorted(times) and times[-1] > 0
+
+
+def test_a_bounded_recorder_is_called_per_event(tmp_path):
+    """With ``max_tick_events`` the recorder must see each event (to write long ticks in
+    parts), so it offers no row buffer to the executor."""
+    recorder = Recorder(tmp_path / "bounded.mcap", load_tree(KITTING), METADATA, max_tick_events=3)
+    assert recorder.status_rows() is None
+    recorder.close()

@@ -88,6 +88,13 @@ class Subscriber:
     ) -> None:
         """A status change."""
 
+    def status_rows(self) -> list[tuple] | None:
+        """A list to which the executor may append each status change as the row
+        ``(seq, t_ns, tick, uid, prev name, status name)`` instead of calling
+        ``on_status`` (one call less per event for a subscriber that only buffers rows,
+        such as the recorder); None, the default, means ``on_status`` is called."""
+        return None
+
     def on_write(
         self,
         seq: int,

@@ -18,15 +18,16 @@ class SimClock:
 
     def __init__(self, tick_period: float = 0.1) -> None:
         self.period_ns = round(tick_period * 1e9)
-        self._now = 0
+        #: the current simulated time in ns since start (what ``now_ns`` returns)
+        self.t_ns = 0
 
     def now_ns(self) -> int:
         """The current simulated time in ns since start."""
-        return self._now
+        return self.t_ns
 
     def start_tick(self, tick: int) -> None:
         """Jump to the time of tick ``tick``."""
-        self._now = (tick - 1) * self.period_ns
+        self.t_ns = (tick - 1) * self.period_ns
 
 
 class WallClock:

@@ -27,7 +27,7 @@ from btlog.executor.controls import CONTROLS
 from btlog.executor.decorators import DECORATORS
 from btlog.executor.nav2_controls import NAV2_CONTROLS
 from btlog.executor.nav2_decorators import NAV2_DECORATORS
-from btlog.status import FAILURE, IDLE, RUNNING, SUCCESS, Status
+from btlog.status import FAILURE, IDLE, RUNNING, STATUS_NAMES, SUCCESS, Status
 from btlog.tree.model import SUBTREE, Node, Tree, blackboard_key
 from btlog.tree.ports import parse_literal
 from btlog.tree.registry import Registry
@@ -128,30 +128,51 @@ class Executor:
         self._wire()
 
     def _wire(self) -> None:
+        """Build the ``emit_status`` the nodes call: with one subscriber that buffers rows
+        (``status_rows``), a single closure appending to its list (no call per event beyond
+        the node's own); otherwise a call of every subscriber's ``on_status``."""
         subscribers = tuple(self.subscribers)
         if not subscribers:
             self.runtime.emit_status = None
             return
         runtime = self.runtime
         now = runtime.clock.now_ns
-        if len(subscribers) == 1:
-            deliver = subscribers[0].on_status
+        rows = subscribers[0].status_rows() if len(subscribers) == 1 else None
+        if rows is not None:
+            runtime.emit_status = self._row_emitter(rows)
+            return
+        handlers = tuple(_status_handler(s) for s in subscribers)
 
-            def emit(uid: int, prev: Status, new: Status) -> None:
-                seq = self.seq
-                self.seq = seq + 1
-                deliver(seq, now(), runtime.tick, uid, prev, new)
-        else:
-            handlers = tuple(s.on_status for s in subscribers)
-
-            def emit(uid: int, prev: Status, new: Status) -> None:
-                seq = self.seq
-                self.seq = seq + 1
-                t = now()
-                for handler in handlers:
-                    handler(seq, t, runtime.tick, uid, prev, new)
+        def emit(uid: int, prev: Status, new: Status) -> None:
+            seq = self.seq
+            self.seq = seq + 1
+            t = now()
+            for handler in handlers:
+                handler(seq, t, runtime.tick, uid, prev, new)
 
         runtime.emit_status = emit
+
+    def _row_emitter(self, rows: list[tuple]) -> Callable[[int, Status, Status], None]:
+        """``emit_status`` appending ``(seq, t_ns, tick, uid, prev name, status name)`` to
+        ``rows``. A plain ``SimClock`` only moves between ticks: its time is read as an
+        attribute, not through a call."""
+        runtime, clock, names, append = self.runtime, self.runtime.clock, STATUS_NAMES, rows.append
+        if type(clock) is SimClock:
+
+            def emit_simulated(uid: int, prev: Status, new: Status) -> None:
+                seq = self.seq
+                self.seq = seq + 1
+                append((seq, clock.t_ns, runtime.tick, uid, names[prev], names[new]))
+
+            return emit_simulated
+        now = clock.now_ns
+
+        def emit(uid: int, prev: Status, new: Status) -> None:
+            seq = self.seq
+            self.seq = seq + 1
+            append((seq, now(), runtime.tick, uid, names[prev], names[new]))
+
+        return emit
 
     def _on_write(self, scope: str, key: str, value: Any, writer: int | None) -> None:
         if not self.subscribers:
@@ -296,3 +317,17 @@ class Executor:
         for subscriber in self.subscribers:
             subscriber.on_mutation(mutation)
         return mutation
+
+
+def _status_handler(subscriber: Subscriber) -> Callable[[int, int, int, int, Status, Status], None]:
+    """What receives ``subscriber``'s status changes: its ``on_status``, or an append of
+    the row to its ``status_rows`` list."""
+    rows = subscriber.status_rows()
+    if rows is None:
+        return subscriber.on_status
+    append, names = rows.append, STATUS_NAMES
+
+    def handler(seq: int, t_ns: int, tick: int, uid: int, prev: Status, new: Status) -> None:
+        append((seq, t_ns, tick, uid, names[prev], names[new]))
+
+    return handler

@@ -1,8 +1,10 @@
 """The recorder: a subscriber that appends a run's events to an MCAP file as they happen.
 
 The cost that matters is per event, and an MCAP message costs microseconds while a Python
-list append costs tens of nanoseconds. So the hot path only appends rows: ``on_status``
-and ``on_write`` build one tuple each, and ``on_tick`` turns the tick's rows into one
+list append costs tens of nanoseconds. So the hot path only appends rows: the executor
+appends each status change to the recorder's ``status_rows`` itself (``on_status`` does
+the same for other callers), ``on_write`` builds one tuple, and ``on_tick`` turns the
+tick's rows into one
 ``/btlog/events`` message (orjson encodes the rows in one call). Grouping changes nothing
 for a reader: every row keeps its own ``seq``, ``t_ns`` and ``tick``.
 
@@ -202,6 +204,13 @@ class Recorder(Subscriber):
         rows.append((seq, t_ns, tick, uid, STATUS_NAMES[prev], STATUS_NAMES[status]))
         if self.max_tick_events is not None and len(rows) > self.max_tick_events:
             self._overflow()
+
+    def status_rows(self) -> list[tuple] | None:
+        """The buffer of status rows, for the executor to append to directly; None when
+        the buffer is bounded (``max_tick_events``) or a subclass overrides ``on_status``."""
+        if self.max_tick_events is not None or type(self).on_status is not Recorder.on_status:
+            return None
+        return self._status_rows
 
     def _status_appender(self) -> Callable[[int, int, int, int, Status, Status], None]:
         """``on_status`` as a closure over the row list: no attribute look-up per event,
