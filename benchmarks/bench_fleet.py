@@ -5,10 +5,12 @@
    (``trees/kitting.xml``), one in ten of the taxi domain (``trees/taxi.xml``), so the
    lake has two domain partitions.
 2. **Export**: ``btlog.fleet.lake.export_runs`` (what ``btlog export --parquet`` runs),
-   in the same processes; runs/s.
-3. **The fleet report** (``btlog fleet``'s DuckDB queries) over the whole lake, best of
-   ``--repeat``, and over the taxi domain only (partition pruning); with ``--spark`` also the
-   PySpark job in local mode on the same lake, and whether both agree.
+   in the same processes, one file per run and table; runs/s.
+3. **The fleet report** (``btlog fleet``'s DuckDB queries) on that lake of one file per
+   run and table (once), then **compaction** (what an export does at its end: one file
+   per table and partition), then the report again on the compacted lake, best of
+   ``--repeat``, and over the taxi domain only (partition pruning); with ``--spark`` also
+   the PySpark job in local mode on the same lake, and whether both agree.
    Beside them, the reference: the same aggregate (activations and failures per node)
    computed with the btlog read model by opening every recording with ``open_runs``
    (caches built), which is what a user without a lake would do.
@@ -16,6 +18,7 @@
     python benchmarks/bench_fleet.py                 # 10,000 runs
     python benchmarks/bench_fleet.py --runs 2000 --spark
     python benchmarks/bench_fleet.py --smoke         # 40 runs
+    python benchmarks/bench_fleet.py --recordings DIR   # reuse (or keep) DIR's recordings
 
 It prints figures; it asserts nothing.
 """
@@ -29,6 +32,7 @@ import time
 from concurrent.futures import ProcessPoolExecutor
 from pathlib import Path
 
+from btlog.fleet.compact import compact_lake
 from btlog.fleet.lake import export_runs
 from btlog.fleet.report import duckdb_report
 from btlog.runner import RunConfig, execute
@@ -45,11 +49,14 @@ def _make_and_export(job: tuple[list[int], str, str]) -> tuple[float, float]:
     started = time.perf_counter()
     paths = []
     for seed in seeds:
-        tree, domain = (TAXI, "taxi") if seed % 10 == 0 else (KITTING, "kitting")
-        config = RunConfig(tree=tree, domain=domain, seed=seed, failure_rate=0.2)
-        paths.append(execute(config, Path(folder) / f"run-{seed}.mcap").path)
+        path = Path(folder) / f"run-{seed}.mcap"
+        if not path.is_file():
+            tree, domain = (TAXI, "taxi") if seed % 10 == 0 else (KITTING, "kitting")
+            config = RunConfig(tree=tree, domain=domain, seed=seed, failure_rate=0.2)
+            execute(config, path)
+        paths.append(path)
     recorded = time.perf_counter()
-    export_runs(paths, lake)
+    export_runs(paths, lake, compact=False)  # the processes share the lake: compact once
     return recorded - started, time.perf_counter() - recorded
 
 
@@ -63,13 +70,18 @@ def main() -> None:
     parser.add_argument("--reference", type=int, default=200, help="runs for the reference")
     parser.add_argument("--smoke", action="store_true", help="40 runs, one repeat")
     parser.add_argument("--keep", metavar="DIR", help="work in DIR and keep the lake")
+    parser.add_argument(
+        "--recordings", metavar="DIR", help="recordings folder (reused: only missing runs made)"
+    )
     args = parser.parse_args()
     if args.smoke:
         args.runs, args.repeat, args.reference = 40, 1, 10
     work = Path(args.keep or tempfile.mkdtemp(prefix="btlog-fleet-"))
     os.environ.setdefault("BTLOG_CACHE_DIR", str(work / "cache"))
-    folder, lake = work / "runs", work / "lake"
+    folder, lake = Path(args.recordings) if args.recordings else work / "runs", work / "lake"
     folder.mkdir(parents=True, exist_ok=True)
+    if lake.exists():
+        raise SystemExit(f"{lake} exists: give a fresh --keep folder")
 
     seeds = list(range(1, args.runs + 1))
     chunks = [seeds[i :: args.jobs * 8] for i in range(args.jobs * 8)]
@@ -79,29 +91,35 @@ def main() -> None:
     wall = time.perf_counter() - started
     recording = sum(s[0] for s in spent)
     exporting = sum(s[1] for s in spent)
-    files = sum(1 for _ in lake.rglob("data.parquet"))
-    size = sum(f.stat().st_size for f in lake.rglob("data.parquet"))
     print(f"runs: {args.runs} runs (kitting, taxi), {args.jobs} processes, {wall:.1f} s wall")
-    print(f"  recording {recording:.1f} s CPU ({args.runs / recording:.0f} runs/s per process)")
+    print(f"  recording {recording:.1f} s CPU ({args.runs / max(recording, 1e-9):.0f} runs/s)")
     print(f"  export    {exporting:.1f} s CPU ({args.runs / exporting:.0f} runs/s per process)")
-    print(f"  lake: {files} files, {size / 1e6:.1f} MB ({size / args.runs / 1e3:.1f} kB/run)")
+    print(f"  lake, one file per run and table: {_files(lake)}")
 
+    loose = _timed(lambda: duckdb_report(str(lake)))
+    print(f"fleet report (DuckDB), one file per run and table: {loose:.2f} s")
+    merged = _timed(lambda: compact_lake(lake))
+    print(f"compaction: {merged:.2f} s; lake: {_files(lake)}")
     best = min(_timed(lambda: duckdb_report(str(lake))) for _ in range(args.repeat))
     report = duckdb_report(str(lake))
-    print(f"fleet report (DuckDB), all {report.runs} runs: {best:.2f} s (best of {args.repeat})")
+    print(
+        f"fleet report (DuckDB), compacted, all {report.runs} runs: {best:.2f} s "
+        f"(best of {args.repeat}) -> {loose / best:.1f}x faster than one file per run"
+    )
     one = min(_timed(lambda: duckdb_report(str(lake), domain="taxi")) for _ in range(args.repeat))
     taxi = duckdb_report(str(lake), domain="taxi").runs
     print(f"fleet report, domain=taxi only ({taxi} runs): {one:.2f} s")
 
     sample = sorted(folder.glob("run-*.mcap"))[: args.reference]
-    ref = _timed(lambda: _reference(sample))
-    per_run_lake = best / report.runs
-    per_run_ref = ref / len(sample)
-    print(
-        f"reference: open_runs over {len(sample)} recordings + the same aggregate: {ref:.2f} s "
-        f"({per_run_ref * 1e3:.1f} ms/run) -> lake {per_run_ref / per_run_lake:.0f}x faster "
-        f"per run"
-    )
+    if sample:
+        ref = _timed(lambda: _reference(sample))
+        per_run_lake = best / report.runs
+        per_run_ref = ref / len(sample)
+        print(
+            f"reference: open_runs over {len(sample)} recordings + the same aggregate: "
+            f"{ref:.2f} s ({per_run_ref * 1e3:.1f} ms/run) -> lake "
+            f"{per_run_ref / per_run_lake:.0f}x faster per run"
+        )
     if args.spark:
         from btlog.fleet.spark import spark_report
 
@@ -110,6 +128,12 @@ def main() -> None:
         spark_s = time.perf_counter() - spark_started
         agree = theirs.to_json() == report.to_json()
         print(f"fleet report (Spark local): {spark_s:.1f} s; same numbers as DuckDB: {agree}")
+
+
+def _files(lake: Path) -> str:
+    files = list(lake.rglob("*.parquet"))
+    size = sum(f.stat().st_size for f in files)
+    return f"{len(files)} files, {size / 1e6:.1f} MB"
 
 
 def _reference(paths: list[Path]) -> int:

@@ -10,7 +10,8 @@ from pathlib import Path
 
 import pytest
 
-from btlog.fleet.lake import export_runs, open_lake
+from btlog.fleet.compact import compact_lake
+from btlog.fleet.lake import LAKE_TABLES, export_runs, open_lake
 from btlog.fleet.report import duckdb_report
 from btlog.replay.database import open_runs
 from btlog.runner import RunConfig, execute
@@ -46,15 +47,22 @@ def lake(runs, tmp_path_factory) -> Path:
     done = btlog("export", *map(str, runs), "--parquet", str(folder))
     assert done.returncode == 0, done.stderr
     assert done.stdout.startswith(f"{len(runs)} runs")
+    assert done.stdout.rstrip().endswith("(2 partitions)")
     return folder
 
 
-def test_layout_is_hive_partitioned_by_domain_date_and_run(lake, runs):
-    files = sorted(lake.glob("transitions/*/*/*/data.parquet"))
-    assert len(files) == len(runs)
-    domains = {f.parts[-4] for f in files}
-    assert domains == {"domain=kitting", "domain=taxi"}
-    assert all(f.parts[-3].startswith("date=") and f.parts[-2].startswith("run_id=") for f in files)
+def test_layout_is_hive_partitioned_by_domain_and_date_one_file_each(lake, runs):
+    """After an export, each table has one file per domain=/date= partition, run_id a
+    column of it."""
+    for table in LAKE_TABLES:
+        files = sorted(lake.glob(f"{table}/*/*/*.parquet"))
+        assert {f.parts[-3] for f in files} == {"domain=kitting", "domain=taxi"}, table
+        assert all(f.parts[-2].startswith("date=") for f in files)
+        assert all(f.name.startswith("part-") for f in files)
+        partitions = {f.parent for f in files}
+        assert len(files) == len(partitions), table
+    con = open_lake(lake)
+    assert con.execute("SELECT count(DISTINCT run_id) FROM transitions").fetchone() == (len(runs),)
 
 
 def test_lake_tables_hold_the_read_models_rows(lake, runs):
@@ -95,6 +103,47 @@ def test_fleet_report_counts_match_the_runs(lake, runs):
             assert 0 <= row["p50_s"] <= row["p90_s"] <= row["p99_s"]
 
 
+#: The per-node report as it was computed before the lake had an ``activations`` table:
+#: straight from every transition (the oracle for the table written at export).
+NODES_FROM_TRANSITIONS = """
+WITH numbered AS (
+  SELECT t.run_id, t.uid, t.t_ns, CAST(t.status AS VARCHAR) AS status,
+         sum(CASE WHEN CAST(t.prev_status AS VARCHAR) = 'IDLE'
+                   AND CAST(t.status AS VARCHAR) <> 'IDLE' THEN 1 ELSE 0 END)
+           OVER (PARTITION BY t.run_id, t.uid ORDER BY t.seq) AS activation
+  FROM transitions t
+), activations AS (
+  SELECT run_id, uid, activation, min(t_ns) AS start_ns,
+         max(CASE WHEN status IN ('SUCCESS', 'FAILURE') THEN t_ns END) AS end_ns,
+         max(CASE WHEN status = 'FAILURE' THEN 1 ELSE 0 END) AS failed,
+         max(CASE WHEN status IN ('SUCCESS', 'FAILURE') THEN 1 ELSE 0 END) AS completed
+  FROM numbered WHERE activation > 0 AND status <> 'IDLE' GROUP BY ALL
+)
+SELECT n.path, n.uid, count(*), sum(completed), sum(failed),
+       quantile_cont(CASE WHEN completed = 1 THEN (end_ns - start_ns) / 1e9 END, 0.5),
+       quantile_cont(CASE WHEN completed = 1 THEN (end_ns - start_ns) / 1e9 END, 0.9),
+       quantile_cont(CASE WHEN completed = 1 THEN (end_ns - start_ns) / 1e9 END, 0.99)
+FROM activations a JOIN nodes n USING (run_id, uid) GROUP BY n.path, n.uid
+"""
+
+
+def test_node_rows_equal_the_aggregate_over_every_transition(lake, runs):
+    """The report reads the activations table; its numbers are those of the same
+    aggregate over every transition of the read model."""
+    with open_runs(*runs, cache=False) as database:
+        expected = {
+            (row[0], row[1]): [None if v is None else round(float(v), 6) for v in row[2:]]
+            for row in database.sql(NODES_FROM_TRANSITIONS)[1]
+        }
+    got = {
+        (r["path"], r["uid"]): [
+            r[k] for k in ("activations", "completed", "failed", "p50_s", "p90_s", "p99_s")
+        ]
+        for r in duckdb_report(str(lake)).nodes
+    }
+    assert got == expected
+
+
 def test_causes_follow_the_causal_chain(lake):
     """The failed taxi run: its root failed because pick up passenger failed."""
     report = duckdb_report(str(lake), domain="taxi")
@@ -122,7 +171,7 @@ def test_a_partition_filter_reads_only_its_partitions(lake, tmp_path):
     never opened them) while an unfiltered one fails."""
     copy = tmp_path / "lake"
     shutil.copytree(lake, copy)
-    for file in copy.glob("transitions/domain=taxi/*/*/data.parquet"):
+    for file in copy.glob("*/domain=taxi/*/*.parquet"):
         file.write_bytes(b"not parquet at all")
     only = btlog(
         "sql", "--lake", str(copy), "SELECT count(*) FROM transitions WHERE domain = 'kitting'"
@@ -131,6 +180,9 @@ def test_a_partition_filter_reads_only_its_partitions(lake, tmp_path):
     every = btlog("sql", "--lake", str(copy), "SELECT count(*) FROM transitions")
     assert every.returncode == 2
     assert every.stderr.count("\n") == 1
+    report = btlog("fleet", str(copy), "--domain", "kitting", "--json")
+    assert report.returncode == 0, report.stderr
+    assert btlog("fleet", str(copy)).returncode == 2
 
 
 def test_lake_sql_is_read_only(lake):
@@ -145,11 +197,72 @@ def test_lake_sql_is_read_only(lake):
     assert not (lake.parent / "leak.csv").exists()
 
 
-def test_reexport_replaces_a_runs_folder(lake, runs, tmp_path):
+def test_reexport_replaces_a_runs_rows(lake, runs, tmp_path):
     copy = tmp_path / "lake"
     shutil.copytree(lake, copy)
-    export_runs(runs[:2], copy)
+    export_runs([runs[0], runs[-1]], copy)
     assert duckdb_report(str(copy)).to_json() == duckdb_report(str(lake)).to_json()
+    assert len(list(copy.glob("transitions/*/*/*.parquet"))) == 2
+
+
+def _loose_copy(lake: Path, runs: list[Path], folder: Path) -> Path:
+    """``lake`` copied to ``folder`` with ``runs`` exported again without compaction."""
+    copy = folder / "lake"
+    shutil.copytree(lake, copy)
+    export_runs(runs, copy, compact=False)
+    return copy
+
+
+def test_an_uncompacted_lake_reads_the_same_and_compacts(lake, runs, tmp_path):
+    """Per-run files of re-exported runs beside the merged file: the newest rows win."""
+    copy = _loose_copy(lake, runs[:3], tmp_path)
+    files = list(copy.glob("transitions/domain=kitting/*/*.parquet"))
+    assert sorted(f.name.split("-")[0] for f in files) == ["part", "run", "run", "run"]
+    assert compact_lake(copy) == 1
+    assert duckdb_report(str(copy)).to_json() == duckdb_report(str(lake)).to_json()
+    assert compact_lake(copy) == 0  # nothing left to merge
+
+
+def test_a_run_whose_export_stopped_before_its_runs_file_is_left_out(lake, runs, tmp_path):
+    """An export that stopped after some tables: those files are ignored at compaction."""
+    fresh = tmp_path / "fresh"
+    export_runs(runs[:1], fresh, compact=False)
+    (loose,) = fresh.glob("runs/*/*/run-*.parquet")
+    loose.unlink()
+    partial = tmp_path / "lake"
+    shutil.copytree(lake, partial)
+    for file in fresh.glob("*/*/*/run-*.parquet"):
+        target = partial / file.relative_to(fresh)
+        target.unlink(missing_ok=True)
+        shutil.copy(file, target)
+    (partial / "runs/domain=kitting").mkdir(exist_ok=True)
+    done = btlog("fleet", str(partial), "--compact", "--json")
+    assert done.returncode == 0, done.stderr
+    import json
+
+    assert json.loads(done.stdout) == duckdb_report(str(lake)).to_json()
+    assert not list(partial.glob("*/*/*/run-*.parquet"))
+
+
+def test_a_compaction_interrupted_before_removing_its_inputs_loses_nothing(lake, runs, tmp_path):
+    """Merged file renamed into place, inputs still there (a crash between the two):
+    the lake reads (some runs twice) and the next compaction restores it exactly; a
+    temporary file left behind is never read and is removed."""
+    copy = _loose_copy(lake, runs[:2], tmp_path)
+    inputs = tmp_path / "inputs"
+    shutil.copytree(copy, inputs)
+    compact_lake(copy)
+    for file in inputs.glob("*/*/*/*.parquet"):
+        shutil.copy(file, copy / file.relative_to(inputs))
+    (temporary,) = copy.glob("runs/domain=kitting/*/")
+    (temporary / ".part-1.parquet.tmp").write_bytes(b"half a file")
+    con = open_lake(copy)
+    distinct, rows = con.execute("SELECT count(DISTINCT run_id), count(*) FROM runs").fetchone()
+    assert distinct == len(runs) and rows > len(runs)  # kitting runs twice, until compacted
+    con.close()
+    assert compact_lake(copy) == 1  # the kitting partition; taxi's was one file already
+    assert duckdb_report(str(copy)).to_json() == duckdb_report(str(lake)).to_json()
+    assert not list(copy.glob("**/.*.tmp"))
 
 
 @pytest.mark.parametrize(

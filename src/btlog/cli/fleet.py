@@ -25,6 +25,12 @@ def add_parsers(commands: argparse._SubParsersAction) -> None:
     fleet.add_argument("--date", metavar="YYYY-MM-DD", help="only runs started that day")
     fleet.add_argument("--nodes", metavar="N", type=int, default=15, help="node rows shown (15)")
     fleet.add_argument("--json", action="store_true", help="JSON output (every node)")
+    fleet.add_argument(
+        "--compact",
+        action="store_true",
+        help="first merge each partition's files into one per table (an export does it "
+        "at its end; this repairs a lake an interrupted export left behind)",
+    )
 
 
 def export_parquet(args: Namespace) -> int:
@@ -34,7 +40,11 @@ def export_parquet(args: Namespace) -> int:
     check_exportable(args.items, args.parquet)
     done = export_runs(args.items, args.parquet)
     transitions = sum(e.transitions for e in done)
-    print(f"{len(done)} runs ({transitions} transitions) -> {safe(args.parquet)}")
+    partitions = len({e.partition for e in done})
+    print(
+        f"{len(done)} runs ({transitions} transitions) -> {safe(args.parquet)} "
+        f"({partitions} partition{'s' if partitions != 1 else ''})"
+    )
     return 0
 
 
@@ -46,6 +56,10 @@ def fleet(args: Namespace) -> int:
 
     if args.date is not None and not re.fullmatch(_DATE, args.date):
         raise ValueError(f"--date {args.date!r}: expected YYYY-MM-DD")
+    if args.compact:
+        from btlog.fleet.compact import compact_lake
+
+        compact_lake(args.lake)
     report = duckdb_report(args.lake, args.domain, args.date)
     if args.json:
         print(json.dumps(report.to_json(), indent=2))

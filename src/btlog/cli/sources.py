@@ -70,8 +70,8 @@ def add_parsers(commands: argparse._SubParsersAction) -> None:
     export.add_argument(
         "--parquet",
         metavar="LAKE",
-        help="write each run's tables as Parquet under LAKE "
-        "(LAKE/TABLE/domain=…/date=…/run_id=…/data.parquet), for 'btlog fleet' and 'sql --lake'",
+        help="write each run's tables as Parquet under LAKE (LAKE/TABLE/domain=…/date=…/, "
+        "one file per table and partition), for 'btlog fleet' and 'sql --lake'",
     )
 
 

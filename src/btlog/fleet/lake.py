@@ -1,40 +1,46 @@
 """Runs into a Parquet lake, and a lake back into DuckDB for queries.
 
-The layout (documented in ``docs/design.md``)::
+The layout (documented in the README, "A fleet of runs")::
 
-    LAKE/{table}/domain={domain}/date={YYYY-MM-DD}/run_id={run_id}/data.parquet
+    LAKE/{table}/domain={domain}/date={YYYY-MM-DD}/{file}.parquet
 
-for ``table`` in ``runs, nodes, transitions, blackboard, ticks, mutations, causes``. The
-files hold the read model's columns except the three partition keys, which readers take
-from the folder names (``hive_partitioning``). Statuses are strings. Re-exporting a run
-replaces its folder, so an export can be repeated safely.
+for ``table`` in ``runs, nodes, transitions, blackboard, ticks, mutations, causes,
+activations``. The files hold the read model's columns (``run_id`` among them) except the
+two partition keys, which readers take from the folder names (``hive_partitioning``).
+Statuses are strings. An export writes one file per run, ``run-{run_id}.parquet``, in
+each table (the ``runs`` table last, which marks the run complete); a compaction
+(``btlog.fleet.compact``, at the end of every export) merges a partition's files into
+one ``part-{stamp}.parquet`` per table, so a lake of thousands of runs is a few files per
+day and domain. Re-exporting a run replaces its rows, so an export can be repeated.
 """
 
 from __future__ import annotations
 
 import os
 import re
-import shutil
 from collections.abc import Callable, Iterable
 from dataclasses import dataclass
 from pathlib import Path
 
 import duckdb
 
-from btlog.explain.causes import cause
-from btlog.history import COMPLETIONS
+from btlog.fleet.derived import create_derived, drop_derived
 from btlog.replay.database import ReplayError, Run, open_runs
 from btlog.replay.tables import PUBLIC_TABLES, identifier
-from btlog.status import FAILURE
 
-#: The lake's tables: the read model's public ones and the failure causes.
-LAKE_TABLES = (*PUBLIC_TABLES, "causes")
-#: Partition keys, outermost first.
-PARTITIONS = ("domain", "date", "run_id")
+#: The lake's tables: the read model's public ones, the failure causes and the
+#: activations (``btlog.fleet.derived``). ``runs`` is written last.
+LAKE_TABLES = (*PUBLIC_TABLES, "causes", "activations")
+#: Partition keys (folder names), outermost first; ``run_id`` is a column.
+PARTITIONS = ("domain", "date")
 #: A partition value as it may appear in a folder name.
 _UNSAFE = re.compile(r"[^A-Za-z0-9_.@+-]")
+#: A table's files, relative to its folder.
+FILES = "*/*/*.parquet"
 #: The value used for a run without a domain or start date.
 NONE = "none"
+#: Columns that hold a status (an ENUM in the read model, a string in the lake).
+_STATUS_COLUMNS = ("status", "prev_status", "final_status", "root_status")
 
 
 class LakeError(ValueError):
@@ -47,7 +53,7 @@ class Exported:
 
     recording: str
     run_id: str
-    folder: Path
+    partition: str
     transitions: int
     causes: int
 
@@ -62,11 +68,14 @@ def export_runs(
     recordings: Iterable[str | os.PathLike],
     lake: str | os.PathLike,
     on_run: Callable[[Exported], None] | None = None,
+    compact: bool = True,
 ) -> list[Exported]:
-    """Export each recording's tables into ``lake`` (see the module docstring).
+    """Export each recording's tables into ``lake`` (see the module docstring), then
+    compact the partitions it wrote to (unless ``compact`` is false: several processes
+    exporting into one lake compact once when all are done).
 
     Each recording is read into memory on its own (no cache is written: an export is a
-    one-off pass over many files) and its folder in every table replaced.
+    one-off pass over many files).
     """
     root = Path(lake)
     done: list[Exported] = []
@@ -77,91 +86,58 @@ def export_runs(
         done.append(exported)
         if on_run is not None:
             on_run(exported)
+    if compact:
+        from btlog.fleet.compact import compact_lake
+
+        compact_lake(root, sorted({e.partition for e in done}))
     return done
 
 
 def _export_run(
     run: Run, con: duckdb.DuckDBPyConnection, root: Path, columns: dict[str, list[str]]
 ) -> Exported:
-    """Write one run's tables (``columns``: each table's columns, filled on first use)."""
+    """Write one run's file in every table (``columns``: each table's columns, filled on
+    first use); each file is written under a temporary name and renamed into place."""
     info = run.info
-    keys = {
-        "domain": partition_value(info.domain),
-        "date": partition_value(info.started_at.date() if info.started_at else None),
-        "run_id": partition_value(info.run_id),
-    }
-    folder = "/".join(f"{key}={keys[key]}" for key in PARTITIONS)
-    causes = _causes_table(run, con)
-    for table in LAKE_TABLES:
-        target = root / table / folder
-        if target.exists():
-            shutil.rmtree(target)
-        target.mkdir(parents=True)
-        source = "_btlog_causes" if table == "causes" else f"{run.catalog}.{identifier(table)}"
-        if table not in columns:
-            columns[table] = _columns(con, source)
-        selected = ", ".join(
-            f"CAST({identifier(c)} AS VARCHAR) AS {identifier(c)}"
-            if c in ("status", "prev_status", "final_status", "root_status")
-            else identifier(c)
-            for c in columns[table]
-            if c not in PARTITIONS
-        )
-        con.execute(
-            f"COPY (SELECT {selected} FROM {source} WHERE run_id = $run) "
-            f"TO $file (FORMAT parquet, COMPRESSION zstd)",
-            {"run": run.stored_id, "file": str(target / "data.parquet")},
-        )
-    count = con.execute(
-        f"SELECT count(*) FROM {run.catalog}.transitions WHERE run_id = $run",
-        {"run": run.stored_id},
-    ).fetchone()
-    con.execute("DROP TABLE _btlog_causes")
-    return Exported(info.file, info.run_id, root, count[0] if count else 0, causes)
+    date = info.started_at.date() if info.started_at else None
+    partition = f"domain={partition_value(info.domain)}/date={partition_value(date)}"
+    name = f"run-{partition_value(info.run_id)}.parquet"
+    try:
+        causes = create_derived(run, con)
+        for table in LAKE_TABLES[1:] + LAKE_TABLES[:1]:  # runs last: the run is complete
+            folder = root / table / partition
+            folder.mkdir(parents=True, exist_ok=True)
+            source = {
+                "causes": "_btlog_causes",
+                "activations": "_btlog_activations",
+            }.get(table, f"{run.catalog}.{identifier(table)}")
+            if table not in columns:
+                columns[table] = _columns(con, source)
+            selected = ", ".join(
+                f"CAST({identifier(c)} AS VARCHAR) AS {identifier(c)}"
+                if c in _STATUS_COLUMNS
+                else identifier(c)
+                for c in columns[table]
+                if c not in PARTITIONS
+            )
+            temporary = folder / f".{name}.tmp"
+            con.execute(
+                f"COPY (SELECT {selected} FROM {source} WHERE run_id = $run) "
+                f"TO $file (FORMAT parquet, COMPRESSION zstd)",
+                {"run": run.stored_id, "file": str(temporary)},
+            )
+            os.replace(temporary, folder / name)
+        count = con.execute(
+            f"SELECT count(*) FROM {run.catalog}.transitions WHERE run_id = $run",
+            {"run": run.stored_id},
+        ).fetchone()
+    finally:
+        drop_derived(con)
+    return Exported(info.file, info.run_id, partition, count[0] if count else 0, causes)
 
 
 def _columns(con: duckdb.DuckDBPyConnection, source: str) -> list[str]:
     return [row[0] for row in con.execute(f"DESCRIBE SELECT * FROM {source}").fetchall()]
-
-
-def _causes_table(run: Run, con: duckdb.DuckDBPyConnection) -> int:
-    """Create ``_btlog_causes``: every FAILURE of a non-execution node with its causal
-    leaf, in event order; return its row count."""
-    tree = run.tree_at("end")
-    history = run.history()
-    inner = [node.uid for node in tree if not node.is_execution]
-    failures = [
-        done
-        for done in history.transitions(inner, COMPLETIONS, 0, run.info.events, 1 << 62)
-        if done.status is FAILURE
-    ]
-    rows = []
-    for done in failures:
-        node = tree.node(done.uid)
-        leaf = cause(tree, node, done, history)
-        culprit = tree.node(leaf.uid)
-        rows.append(
-            (
-                run.stored_id,
-                done.seq,
-                done.t_ns,
-                node.uid,
-                node.path,
-                node.description,
-                culprit.uid,
-                culprit.path,
-                culprit.description,
-                "succeeded" if leaf.status.name == "SUCCESS" else "failed",
-            )
-        )
-    con.execute(
-        "CREATE TEMP TABLE _btlog_causes (run_id VARCHAR, seq BIGINT, t_ns BIGINT, "
-        "uid INTEGER, path VARCHAR, name VARCHAR, cause_uid INTEGER, cause_path VARCHAR, "
-        "cause_name VARCHAR, verb VARCHAR)"
-    )
-    if rows:
-        con.executemany("INSERT INTO _btlog_causes VALUES (?, ?, ?, ?, ?, ?, ?, ?, ?, ?)", rows)
-    return len(rows)
 
 
 def open_lake(lake: str | os.PathLike) -> duckdb.DuckDBPyConnection:
@@ -171,16 +147,16 @@ def open_lake(lake: str | os.PathLike) -> duckdb.DuckDBPyConnection:
     root = Path(lake).resolve()
     if not root.is_dir():
         raise LakeError(f"{lake}: not a folder")
-    present = [t for t in LAKE_TABLES if any((root / t).glob("*/*/*/data.parquet"))]
+    present = [t for t in LAKE_TABLES if any((root / t).glob(FILES))]
     if "runs" not in present:
-        raise LakeError(f"{lake}: not a btlog lake (no runs/…/data.parquet)")
+        raise LakeError(f"{lake}: not a btlog lake (no runs/domain=…/date=…/*.parquet)")
     con = duckdb.connect()
     for table in present:
-        pattern = str(root / table / "*" / "*" / "*" / "data.parquet")
+        pattern = str(root / table / FILES)
         con.execute(
             f"CREATE VIEW {identifier(table)} AS SELECT * FROM read_parquet("
             f"'{_quoted(pattern)}', hive_partitioning = true, "
-            f"hive_types = {{'domain': VARCHAR, 'date': VARCHAR, 'run_id': VARCHAR}})"
+            f"hive_types = {{'domain': VARCHAR, 'date': VARCHAR}})"
         )
     con.execute(f"SET allowed_directories = ['{_quoted(str(root))}/']")
     con.execute("SET enable_external_access = false")
@@ -206,6 +182,7 @@ def check_exportable(recordings: Iterable[str | os.PathLike], lake: str | os.Pat
 
 
 __all__ = [
+    "FILES",
     "LAKE_TABLES",
     "Exported",
     "LakeError",

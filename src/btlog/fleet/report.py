@@ -6,7 +6,8 @@ Three questions a developer asks of a fleet:
 - **Per node** (a node is its path, the same across runs of one tree): its activations (a
   start out of IDLE), how many completed and failed, the failure rate (failed /
   completed) and the duration of a completed activation (start to completion) at the
-  50th, 90th and 99th percentiles, in seconds.
+  50th, 90th and 99th percentiles, in seconds; read from the lake's ``activations``
+  table (one row per activation, written at export: ``btlog.fleet.derived``).
 - **Causes**: the most frequent failure causes: for a failed node, the execution node
   whose result caused it (the causal chain of ``btlog.explain.causes``, exported with
   every run as the ``causes`` table).
@@ -34,23 +35,6 @@ ORDER BY runs DESC, final_status
 """
 
 NODES = """
-WITH numbered AS (
-  SELECT t.run_id, t.uid, t.t_ns, t.status,
-         sum(CASE WHEN t.prev_status = 'IDLE' AND t.status <> 'IDLE' THEN 1 ELSE 0 END)
-           OVER (PARTITION BY t.run_id, t.uid ORDER BY t.seq
-                 ROWS BETWEEN UNBOUNDED PRECEDING AND CURRENT ROW) AS activation
-  FROM transitions t {where}
-),
-activations AS (
-  SELECT run_id, uid, activation,
-         min(t_ns) AS start_ns,
-         max(CASE WHEN status IN ('SUCCESS', 'FAILURE') THEN t_ns END) AS end_ns,
-         max(CASE WHEN status = 'FAILURE' THEN 1 ELSE 0 END) AS failed,
-         max(CASE WHEN status IN ('SUCCESS', 'FAILURE') THEN 1 ELSE 0 END) AS completed
-  FROM numbered
-  WHERE activation > 0 AND status <> 'IDLE'
-  GROUP BY run_id, uid, activation
-)
 SELECT n.path, n.uid, n.name, n.type, n.kind,
        count(*) AS activations,
        sum(a.completed) AS completed,
@@ -60,8 +44,8 @@ SELECT n.path, n.uid, n.name, n.type, n.kind,
        {pct}(CASE WHEN a.completed = 1 THEN (a.end_ns - a.start_ns) / 1e9 END, 0.5) AS p50_s,
        {pct}(CASE WHEN a.completed = 1 THEN (a.end_ns - a.start_ns) / 1e9 END, 0.9) AS p90_s,
        {pct}(CASE WHEN a.completed = 1 THEN (a.end_ns - a.start_ns) / 1e9 END, 0.99) AS p99_s
-FROM activations a
-JOIN nodes n ON n.run_id = a.run_id AND n.uid = a.uid
+FROM (SELECT * FROM activations {where}) a
+JOIN (SELECT * FROM nodes {where}) n ON n.run_id = a.run_id AND n.uid = a.uid
 GROUP BY n.path, n.uid, n.name, n.type, n.kind
 ORDER BY failed DESC, activations DESC, n.path, n.uid
 """
@@ -80,11 +64,9 @@ def queries(dialect: str, where: str = "") -> dict[str, str]:
     """The report's three queries for ``dialect`` ("duckdb" or "spark"); ``where`` is a
     filter on the partition columns (``WHERE domain = 'taxi'``), built by the caller
     from validated values only."""
-    pct = _PERCENTILE[dialect]
-    nodes_where = where.replace("WHERE ", "WHERE t.", 1) if where else ""
     return {
         "outcomes": OUTCOMES.format(where=where),
-        "nodes": NODES.format(where=nodes_where, pct=pct),
+        "nodes": NODES.format(where=where, pct=_PERCENTILE[dialect]),
         "causes": CAUSES.format(where=where, top=TOP_CAUSES),
     }
 

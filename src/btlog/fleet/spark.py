@@ -20,7 +20,7 @@ import sys
 from pathlib import Path
 from typing import Any
 
-from btlog.fleet.lake import LAKE_TABLES
+from btlog.fleet.lake import FILES, LAKE_TABLES
 from btlog.fleet.report import FleetReport, normalised, partition_filter, queries
 
 
@@ -51,7 +51,7 @@ def spark_report(
         root = Path(lake).resolve()
         for table in LAKE_TABLES:
             folder = root / table
-            if any(folder.glob("*/*/*/data.parquet")):
+            if any(folder.glob(FILES)):
                 frame = spark.read.option("basePath", str(folder)).parquet(str(folder))
                 frame.createOrReplaceTempView(table)
         where, params = partition_filter(domain, date, placeholder=":")
