@@ -10,11 +10,12 @@
    rows** from Parquet: the ingested ``transitions``, ``blackboard`` and ``ticks`` are
    written to Parquet files and ``CREATE TABLE … AS SELECT * FROM read_parquet(…)`` is
    timed; the ratio shows what decoding the MCAP costs on top of DuckDB's own loading.
-3. **The first ``btlog sql``** on the fresh recording, end to end (a new process, the
-   cache built, one query answered), as a user meets it. **The first open**
-   (``open_runs``, cache built): the tables, then the snapshots (SQL over the tables,
-   a snapshot every K events) while the tables are written to the cache file, then the
-   rest; and a second open (cache used).
+3. **The first ``btlog sql`` and ``btlog ask``** on the fresh recording, end to end (a
+   new process, the cache built, one answer), as a user meets them, the fixed cost of a
+   first query (a tiny recording) and a warm ``btlog ask``. **The first open**
+   (``open_runs``, cache built): the tables, written to the cache file; the snapshots
+   (SQL over the tables, a snapshot every K events), built on the first state asked for;
+   and a second open (cache used).
 4. **The state at a moment**: ``Run.state_at("seq:N")`` at ``--moments`` random N in the
    first 10% and in the last 10% of the run; median and p90 latency (ms), cold (a fresh
    ``Run`` per figure, so its small block cache starts empty).
@@ -165,15 +166,39 @@ def best(run: Callable[[], object], repeat: int) -> tuple[float, object]:
     return min(times), result
 
 
-def first_sql(path: Path, cache_home: Path) -> float:
-    """Wall seconds of the first ``btlog sql`` on ``path`` (a fresh cache), as a user
-    meets it: a new process, the read model built, one query answered."""
+def btlog_seconds(cache_home: Path, *args: str) -> float:
+    """Wall seconds of one ``btlog`` command in a new process (caches in ``cache_home``)."""
     env = {**os.environ, "XDG_CACHE_HOME": str(cache_home)}
-    command = [sys.executable, "-m", "btlog.cli.main", "sql", str(path)]
     start = time.perf_counter()
-    query = [*command, "SELECT count(*) FROM transitions"]
-    subprocess.run(query, env=env, check=True, stdout=subprocess.DEVNULL)
+    command = [sys.executable, "-m", "btlog.cli.main", *args]
+    subprocess.run(command, env=env, check=True, stdout=subprocess.DEVNULL)
     return time.perf_counter() - start
+
+
+def first_answers(path: Path, folder: Path, events: int) -> None:
+    """Print the first ``btlog sql`` and ``btlog ask`` on the fresh recording, end to end
+    (a new process, the read model built, one answer), then warm, as a user meets them;
+    and the fixed cost of a first query (the same on a 1-event-cycle recording)."""
+    query = ("sql", str(path), "SELECT count(*) FROM transitions")
+    ask = ("ask", str(path), "--at", "end", "What are you doing?")
+    sql_first = btlog_seconds(folder / "xdg-sql", *query)
+    ask_then = btlog_seconds(folder / "xdg-sql", *ask)
+    ask_warm = btlog_seconds(folder / "xdg-sql", *ask)
+    ask_first = btlog_seconds(folder / "xdg-ask", *ask)
+    small = folder / "small.mcap"
+    write_recording(small, 1)
+    fixed = btlog_seconds(folder / "xdg-small", "sql", str(small), query[2])
+    print(
+        f"first `btlog sql` on the fresh recording (end to end, cache built): "
+        f"{sql_first:.2f} s = {events / sql_first:,.0f} events/s; fixed cost of a first "
+        f"query (a {small.stat().st_size / 1e3:.0f} KB recording) {fixed:.2f} s; beyond it "
+        f"{events / max(sql_first - fixed, 1e-9):,.0f} events/s"
+    )
+    print(
+        f"first `btlog ask --at end` on the fresh recording: {ask_first:.2f} s "
+        f"({events / max(ask_first - fixed, 1e-9):,.0f} events/s beyond the fixed cost); "
+        f"after the first `btlog sql` (snapshots built): {ask_then:.2f} s; warm: {ask_warm:.2f} s"
+    )
 
 
 def ingest_in_memory(path: Path) -> ingest.IngestReport:
@@ -275,11 +300,7 @@ def main() -> None:
             f"{time.perf_counter() - start:.1f} s"
         )
 
-        first = first_sql(path, folder / "xdg")
-        print(
-            f"first `btlog sql` on the fresh recording (end to end, cache built): {first:.2f} s "
-            f"= {written / first:,.0f} events/s"
-        )
+        first_answers(path, folder, written)
         seconds, report = best(lambda: ingest_in_memory(path), repeat)
         print(
             f"ingestion, tables in memory (best of {repeat}): {seconds:.2f} s = "
@@ -297,14 +318,17 @@ def main() -> None:
         start = time.perf_counter()
         with open_runs(path, snapshot_every=args.snapshot_every, cache_dir=cache) as database:
             built = database.ingested[0]
-        total = time.perf_counter() - start
-        rest = total - built.ingest_seconds - built.snapshot_seconds
+            total = time.perf_counter() - start
+            start = time.perf_counter()
+            database.run().snapshots_table()
+            snapshots = time.perf_counter() - start
+        rest = total - built.ingest_seconds
         size = sum(f.stat().st_size for f in cache.iterdir()) / 1e6
         print(
             f"open_runs, first open (cache built): {total:.2f} s = tables "
-            f"{built.ingest_seconds:.2f} s + snapshots {built.snapshot_seconds:.2f} s "
-            f"({built.snapshots:,} snapshots, K = {args.snapshot_every}; the tables are "
-            f"written to the cache meanwhile) + the rest {rest:.2f} s; cache {size:.0f} MB"
+            f"{built.ingest_seconds:.2f} s + writing the cache file {rest:.2f} s; then the "
+            f"snapshots, on the first state asked for: {snapshots:.2f} s (K = "
+            f"{args.snapshot_every}); caches {size:.0f} MB"
         )
         start = time.perf_counter()
         with open_runs(path, snapshot_every=args.snapshot_every, cache_dir=cache) as database:
@@ -318,11 +342,11 @@ def main() -> None:
             for every in (256, 512, 1024, 2048, 4096):
                 sweep_cache = folder / f"cache-{every}"
                 with open_runs(path, snapshot_every=every, cache_dir=sweep_cache) as database:
-                    built = database.ingested[0]
-                print(
-                    f"  K = {every}: snapshots {built.snapshot_seconds:.2f} s, "
-                    f"{built.snapshots:,} rows"
-                )
+                    start = time.perf_counter()
+                    table = database.run().snapshots_table()
+                    seconds = time.perf_counter() - start
+                    (rows,) = database.con.execute(f"SELECT count(*) FROM {table}").fetchone()
+                print(f"  K = {every}: snapshots {seconds:.2f} s, {rows:,} rows")
                 state_figures(path, sweep_cache, args.moments, every)
 
 

@@ -34,7 +34,7 @@ def test_large_values_are_not_copied_into_every_snapshot(tmp_path: Path) -> None
     with open_runs(path, cache=False, snapshot_every=16) as database:
         run = database.run()
         _c, [(snapshots, stored)] = database.sql(
-            "SELECT count(*), sum(strlen(state::VARCHAR)) FROM run0._snapshots"
+            f"SELECT count(*), sum(strlen(state::VARCHAR)) FROM {run.snapshots_table()}"
         )
         assert snapshots > 40
         assert stored < 64 * 1024, "no snapshot holds a copy of the 64 KiB value"

@@ -25,7 +25,7 @@ def assert_snapshots_equal_the_fold(path: Path, states: list[dict], every: int) 
     many events; returns the snapshots' states."""
     with open_runs(path, cache=False, snapshot_every=every) as database:
         run = database.run()
-        rows = database.con.execute("SELECT seq, state FROM run0._snapshots ORDER BY seq")
+        rows = database.con.execute(f"SELECT seq, state FROM {run.snapshots_table()} ORDER BY seq")
         found = []
         for seq, text in rows.fetchall():
             state = canonical(

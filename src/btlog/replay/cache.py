@@ -15,6 +15,8 @@ is built under a temporary name holding the builder's pid and moved into place w
 complete; the leftovers of a killed build (its pid gone) are removed on the next open.
 Using a cache touches its mtime, and after a build the least recently used caches are
 evicted until the folder is under its size cap (``$BTLOG_CACHE_MAX_MB``, default 2048).
+A cache holds the tables; the snapshots, which only states need, are built on the first
+state asked for, into a second file beside it (``NAME.snapshots.duckdb``).
 """
 
 from __future__ import annotations
@@ -24,7 +26,6 @@ import hashlib
 import os
 import re
 import uuid
-from concurrent.futures import ThreadPoolExecutor
 from dataclasses import dataclass
 from pathlib import Path
 
@@ -35,6 +36,8 @@ from btlog.replay import ingest as ingestion
 from btlog.replay.tables import INGEST_VERSION, create_schema
 
 SUFFIX = ".duckdb"
+#: The snapshots of a cache ``NAME.duckdb`` are in ``NAME.snapshots.duckdb``.
+SNAPSHOTS_SUFFIX = ".snapshots" + SUFFIX
 #: The default size cap of the cache folder, in MB (``$BTLOG_CACHE_MAX_MB`` overrides).
 DEFAULT_MAX_MB = 2048
 #: Recordings smaller than this get a cache of 16 KiB blocks instead of DuckDB's 256 KiB:
@@ -171,37 +174,68 @@ def _alive(pid: int) -> bool:
 
 
 def build(path: str, cache: Path, snapshot_every: int) -> ingestion.IngestReport:
-    """Ingest ``path`` into a new cache file, moved into place when complete.
+    """Ingest ``path``'s tables into a new cache file, moved into place when complete.
 
-    The tables are loaded in memory; then, while the snapshots are folded (Python, on
-    this thread), a worker thread writes the tables to the file (DuckDB, compressing
-    them in C++), so the two overlap; the snapshots follow them into the file.
+    The tables are loaded in memory, then copied into the file (DuckDB compresses them
+    in C++). The snapshots are not built here: a first question in SQL needs only the
+    tables; the first state asked for builds them (``build_snapshots``).
     """
     cache.parent.mkdir(parents=True, exist_ok=True)
-    temporary = cache.with_name(f".{cache.name}.{os.getpid()}-{uuid.uuid4().hex[:8]}{SUFFIX}")
+    temporary = _temporary(cache)
     con = duckdb.connect()
     try:
         small = os.path.getsize(path) < SMALL_RECORDING
-        blocks = " (BLOCK_SIZE 16384)" if small else ""
-        con.execute(f"ATTACH $path AS cache_file{blocks}", {"path": str(temporary)})
+        con.execute(f"ATTACH $path AS cache_file{_blocks(small)}", {"path": str(temporary)})
         create_schema(con)
         report = ingestion.load_tables(con, path, snapshot_every=snapshot_every)
-        with ThreadPoolExecutor(max_workers=1, thread_name_prefix="btlog-cache") as pool:
-            copying = pool.submit(_copy_tables, con.cursor())
-            try:
-                report = ingestion.add_snapshots(con, report)
-            finally:
-                copying.result()
-        for table in ("_snapshots", "_ingest"):
-            con.execute(f"DELETE FROM cache_file.{table}")
-            con.execute(f"INSERT INTO cache_file.{table} SELECT * FROM memory.{table}")
+        _copy_tables(con.cursor())
         con.execute("DETACH cache_file")
         os.replace(temporary, cache)
     finally:
         con.close()
-        for leftover in (temporary, Path(f"{temporary}.wal")):
-            leftover.unlink(missing_ok=True)
+        _remove_temporary(temporary)
     return report
+
+
+def snapshots_path(cache: Path) -> Path:
+    """Where the snapshots of the cache ``cache`` live: a file beside it, built on the
+    first state asked for (``build_snapshots``)."""
+    return cache.with_name(cache.name.removesuffix(SUFFIX) + SNAPSHOTS_SUFFIX)
+
+
+def build_snapshots(cache: Path, target: Path) -> float:
+    """Build the snapshots of the run cached in ``cache`` into a new file ``target``
+    (moved into place when complete); returns the seconds taken. The cache itself is
+    only read (other processes may have it open)."""
+    temporary = _temporary(target)
+    con = duckdb.connect()
+    try:
+        small = cache.stat().st_size < SMALL_RECORDING * 4
+        con.execute("ATTACH $path AS cached (READ_ONLY)", {"path": str(cache)})
+        con.execute(f"ATTACH $path AS snapshot_file{_blocks(small)}", {"path": str(temporary)})
+        con.execute("CREATE TABLE snapshot_file._snapshots AS FROM cached._snapshots LIMIT 0")
+        _rows, seconds = ingestion.snapshots_into(con, "snapshot_file._snapshots", "cached")
+        con.execute("DETACH snapshot_file")
+        os.replace(temporary, target)
+    finally:
+        con.close()
+        _remove_temporary(temporary)
+    return seconds
+
+
+def _temporary(path: Path) -> Path:
+    """The name a file is built under (``_TEMPORARY``) before it is moved to ``path``."""
+    return path.with_name(f".{path.name}.{os.getpid()}-{uuid.uuid4().hex[:8]}{SUFFIX}")
+
+
+def _remove_temporary(temporary: Path) -> None:
+    for leftover in (temporary, Path(f"{temporary}.wal")):
+        leftover.unlink(missing_ok=True)
+
+
+def _blocks(small: bool) -> str:
+    """The ATTACH option of a cache file: 16 KiB blocks for a small recording."""
+    return " (BLOCK_SIZE 16384)" if small else ""
 
 
 def _copy_tables(cursor: duckdb.DuckDBPyConnection) -> None:

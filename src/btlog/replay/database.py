@@ -16,8 +16,9 @@ ingested into an in-memory catalog.
 
 **The state at a moment.** ``Run.state_at(moment)`` resolves the moment to a number of
 events (``btlog.replay.moments``) and reads one row of ``_snapshots``: the state every
-``snapshot_every`` events (written at ingestion) together with the block of events up to
-the next snapshot. It folds only the events of that block up to the moment with
+``snapshot_every`` events together with the block of events up to the next snapshot.
+The snapshots are built on the first state asked for (a question in SQL needs only the
+tables), into a file beside the run's cache (``Run.snapshots_table``). It folds only the events of that block up to the moment with
 ``StateProjection`` — never the run from its start — so every moment of a long run
 costs the same: one point query and at most ``snapshot_every`` events. Times and ticks
 are resolved from the same rows (each knows the time and tick of its first event). The
@@ -167,6 +168,8 @@ class RunDatabase:
         self.notices: list[str] = []
         self._runs: list[Run] = []
         self._attached: set[Path] = set()
+        #: the cache file of each run's catalog (none for a run read into memory)
+        self._caches: dict[str, Path] = {}
         #: True once ``lock`` made user SQL read-only
         self.locked = False
 
@@ -207,6 +210,7 @@ class RunDatabase:
         place = cache.cache_path(path, self.snapshot_every, cache_dir)
         if self._attach_if_current(place, catalog, path):
             cache.touch(place)
+            self._caches[catalog] = place
             return
         try:
             self.ingested.append(cache.build(path, place, self.snapshot_every))
@@ -222,7 +226,55 @@ class RunDatabase:
             return
         self.con.execute(f"ATTACH $path AS {catalog} (READ_ONLY)", {"path": str(place)})
         self._attached.add(place)
+        self._caches[catalog] = place
         cache.evict(root, cache.max_bytes(), self._attached)
+
+    def snapshots_of(self, catalog: str) -> str:
+        """The qualified name of the ``_snapshots`` table of the run in ``catalog``,
+        built on first use: into the run's own catalog for a run read into memory, else
+        into a file beside its cache (``cache.snapshots_path``), attached read-only; in
+        memory when that file cannot be written."""
+        place = self._caches.get(catalog)
+        if place is None:
+            table = f"{catalog}._snapshots"
+            if only_row(self.con, f"SELECT count(*) FROM {table}")[0] == 0:
+                ingestion.snapshots_into(self.con, table, catalog)
+            return table
+        name = f"{catalog}_snapshots"
+        target = cache.snapshots_path(place)
+        if not self._attach_snapshots(target, name):
+            try:
+                cache.build_snapshots(place, target)
+            except (OSError, duckdb.IOException) as error:
+                reason = getattr(error, "strerror", None) or one_line(error)
+                self.notices.append(
+                    f"cannot write the cache folder {target.parent} ({reason}); "
+                    "the snapshots are built in memory instead"
+                )
+                self.con.execute(f"ATTACH ':memory:' AS {name}")
+                self.con.execute(
+                    f"CREATE TABLE {name}._snapshots AS FROM {catalog}._snapshots LIMIT 0"
+                )
+                ingestion.snapshots_into(self.con, f"{name}._snapshots", catalog)
+                return f"{name}._snapshots"
+            if not self._attach_snapshots(target, name):
+                raise ReplayError(f"{target}: cannot read the snapshots just built")
+            cache.evict(place.parent, cache.max_bytes(), self._attached)
+        cache.touch(target)
+        return f"{name}._snapshots"
+
+    def _attach_snapshots(self, target: Path, name: str) -> bool:
+        """Attach the snapshot file ``target`` as catalog ``name`` if it can be read."""
+        if not target.is_file():
+            return False
+        try:
+            self.con.execute(f"ATTACH $path AS {name} (READ_ONLY)", {"path": str(target)})
+            self.con.execute(f"SELECT count(*) FROM {name}._snapshots").fetchall()
+        except duckdb.Error:
+            self.con.execute(f"DETACH DATABASE IF EXISTS {name}")
+            return False
+        self._attached.add(target)
+        return True
 
     def _attach_if_current(self, place: Path, catalog: str, path: str) -> bool:
         """Attach the cache ``place`` if it exists and is complete and current (its
@@ -251,7 +303,9 @@ class RunDatabase:
         try:
             create_schema(self.con)
             self.ingested.append(
-                ingestion.ingest(self.con, path, snapshot_every=self.snapshot_every)
+                ingestion.ingest(
+                    self.con, path, snapshot_every=self.snapshot_every, snapshots=False
+                )
             )
         except BaseException:
             self.con.execute("USE memory")
@@ -392,16 +446,10 @@ class Run:
         self.tree = Tree.from_description(orjson.loads(tree))
         self.mutations = load_mutations(self.con, self._stored_id, self._prefix)
         self.info = self._info(path, events, last_tick, truncated, orjson.loads(warnings))
-        rows = self.con.execute(
-            f"SELECT first_t_ns, first_tick FROM {catalog}._snapshots WHERE run_id = $run_id "
-            f"ORDER BY seq",
-            {"run_id": self._stored_id},
-        ).fetchall()
+        self._database = database
+        self._snapshots: str | None = None
         #: time and tick of the first event of each block (past the end for an empty one)
-        self._first_keys = {
-            "t_ns": [_PAST if r[0] is None else r[0] for r in rows],
-            "tick": [_PAST if r[1] is None else r[1] for r in rows],
-        }
+        self._keys: dict[str, list[int]] | None = None
         self._blocks: OrderedDict[int, tuple[dict, EventBatch]] = OrderedDict()
         started_ns, zone = parse_started_at(self.info.metadata.get("started_at"))
         self.extent = RunExtent(
@@ -455,6 +503,28 @@ class Run:
         return SqlHistory(self)
 
     # -- snapshot blocks -----------------------------------------------------------------
+    def snapshots_table(self) -> str:
+        """The qualified name of the run's ``_snapshots`` table. The snapshots are built
+        on the first call (a question in SQL never needs them), then reused."""
+        if self._snapshots is None:
+            self._snapshots = self._database.snapshots_of(self.catalog)
+        return self._snapshots
+
+    @property
+    def _first_keys(self) -> dict[str, list[int]]:
+        """Time and tick of the first event of each snapshot's block."""
+        if self._keys is None:
+            rows = self.con.execute(
+                f"SELECT first_t_ns, first_tick FROM {self.snapshots_table()} "
+                "WHERE run_id = $run_id ORDER BY seq",
+                {"run_id": self._stored_id},
+            ).fetchall()
+            self._keys = {
+                "t_ns": [_PAST if r[0] is None else r[0] for r in rows],
+                "tick": [_PAST if r[1] is None else r[1] for r in rows],
+            }
+        return self._keys
+
     def _block(self, index: int) -> tuple[dict, EventBatch]:
         """Snapshot ``index``: the state before event ``index * snapshot_every`` (as JSON)
         and the events up to the next snapshot."""
@@ -465,7 +535,7 @@ class Run:
         seq = index * self.snapshot_every
         state, events = only_row(
             self.con,
-            f"SELECT state, events FROM {self._prefix}_snapshots "
+            f"SELECT state, events FROM {self.snapshots_table()} "
             f"WHERE run_id = $run_id AND seq = $seq",
             {"run_id": self._stored_id, "seq": seq},
         )

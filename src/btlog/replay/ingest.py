@@ -35,7 +35,7 @@ from btlog.replay.run_tables import (
 )
 from btlog.replay.scan import Collected, McapScan
 from btlog.replay.snapshots import DEFAULT_SNAPSHOT_EVERY, build_snapshots
-from btlog.replay.tables import INGEST_VERSION, discard_run, first_row, one_row
+from btlog.replay.tables import INGEST_VERSION, discard_run, first_row, identifier, one_row
 from btlog.tree.model import Tree
 
 
@@ -130,19 +130,8 @@ def load_tables(
 def add_snapshots(con: duckdb.DuckDBPyConnection, report: IngestReport) -> IngestReport:
     """Fold the run loaded by ``load_tables`` and store its snapshots; the report with
     the snapshot figures."""
-    started = time.perf_counter()
-    (tree,) = one_row(
-        con, "SELECT tree FROM _ingest WHERE run_id = $run_id", {"run_id": report.run_id}
-    )
     try:
-        stored = build_snapshots(
-            con,
-            report.run_id,
-            Tree.from_description(orjson.loads(tree)),
-            report.events,
-            report.snapshot_every,
-        )
-        seconds = time.perf_counter() - started
+        stored, seconds = snapshots_into(con, "_snapshots", run_id=report.run_id)
         con.execute(
             "UPDATE _ingest SET snapshot_seconds = $seconds WHERE run_id = $run_id",
             {"seconds": seconds, "run_id": report.run_id},
@@ -151,6 +140,35 @@ def add_snapshots(con: duckdb.DuckDBPyConnection, report: IngestReport) -> Inges
         con.execute("DELETE FROM _snapshots WHERE run_id = $run_id", {"run_id": report.run_id})
         raise
     return replace(report, snapshot_seconds=seconds, snapshots=stored)
+
+
+def snapshots_into(
+    con: duckdb.DuckDBPyConnection,
+    target: str,
+    catalog: str | None = None,
+    run_id: str | None = None,
+) -> tuple[int, float]:
+    """Build the snapshots of run ``run_id`` (default: the only one) whose tables are in
+    ``catalog`` (default: the current one; it may be read-only) into the table ``target``
+    (``_snapshots``, or ``other_catalog._snapshots``); (rows, seconds)."""
+    started = time.perf_counter()
+    (before,) = one_row(con, "SELECT current_database()")
+    if catalog is not None:
+        con.execute(f"USE {identifier(catalog)}")
+    try:
+        where = "" if run_id is None else "WHERE run_id = $run_id"
+        run_id, events, every, tree = one_row(
+            con,
+            f"SELECT run_id, events, snapshot_every, tree FROM _ingest {where}",
+            {} if run_id is None else {"run_id": run_id},
+        )
+        stored = build_snapshots(
+            con, run_id, Tree.from_description(orjson.loads(tree)), events, every, target
+        )
+    finally:
+        if catalog is not None:
+            con.execute(f"USE {identifier(before)}")
+    return stored, time.perf_counter() - started
 
 
 def _load_rows(con: duckdb.DuckDBPyConnection, run_id: str, name: str) -> Collected:

@@ -13,6 +13,7 @@ the tables (``fetch_events``; ``btlog.replay.database``).
 
 from __future__ import annotations
 
+import struct
 from bisect import bisect_left, bisect_right
 from dataclasses import dataclass, field
 from typing import Any, cast
@@ -121,9 +122,15 @@ class EventBatch:
     def from_block(cls, data: bytes, mutations: list[TreeMutation]) -> EventBatch:
         """The batch of a snapshot row's ``events`` (see ``build_snapshots``), with the
         given mutations of its range."""
-        message = orjson.loads(zstandard.ZstdDecompressor().decompress(data))
-        writes = [BlackboardWrite(*row) for row in message["writes"]]
-        seq, t_ns, tick, uid, prev, status = message["status"]
+        view = memoryview(zstandard.ZstdDecompressor().decompress(data))
+        (count,) = _BLOCK_HEAD.unpack_from(view)
+        at, columns = _BLOCK_HEAD.size, []
+        for _name, _sql, code in _BLOCK_COLUMNS:
+            end = at + count * struct.calcsize(code)
+            columns.append(view[at:end].cast(code).tolist())
+            at = end
+        writes = [BlackboardWrite(*row) for row in orjson.loads(view[at:])]
+        seq, t_ns, tick, uid, prev, status = columns
         return cls(seq, t_ns, tick, uid, prev, status, writes, mutations)
 
 
@@ -150,12 +157,27 @@ def load_mutations(
 
 
 def build_snapshots(
-    con: duckdb.DuckDBPyConnection, run_id: str, tree: Tree, events: int, every: int
+    con: duckdb.DuckDBPyConnection,
+    run_id: str,
+    tree: Tree,
+    events: int,
+    every: int,
+    target: str = "_snapshots",
 ) -> int:
-    """Store a row in ``_snapshots`` every ``every`` events (from seq 0): the state
-    *before* that event. Built as SQL over the tables (``SNAPSHOTS_SQL``), but for the
-    retry counts, folded by ``StateProjection`` over the few events that change them.
-    Returns the row count."""
+    """Store a row in ``target`` (a ``_snapshots`` table) every ``every`` events (from
+    seq 0): the state *before* that event, read from the tables of the connection's
+    current catalog (``snapshot_rows``). Returns the row count."""
+    table = snapshot_rows(con, run_id, tree, events, every)
+    insert_arrow(con, target, run_id, table)
+    return table.num_rows
+
+
+def snapshot_rows(
+    con: duckdb.DuckDBPyConnection, run_id: str, tree: Tree, events: int, every: int
+) -> pa.Table:
+    """The ``_snapshots`` rows of a run (without ``run_id``), one every ``every`` events.
+    Built as SQL over the tables (``SNAPSHOTS_SQL``), but for the retry counts, folded
+    by ``StateProjection`` over the few events that change them."""
     mutations = load_mutations(con, run_id)
     final = StateProjection(tree)
     for mutation in mutations:
@@ -181,16 +203,60 @@ def build_snapshots(
         rows = con.sql(SNAPSHOTS_SQL.format(retry_view=view), params=params).to_arrow_table()
     finally:
         con.unregister(view)
+    blocks = _event_blocks(con, run_id, every, rows["write_block"].to_pylist())
+    table = rows.drop_columns(["write_block"])
+    return table.append_column("events", pa.array(blocks, pa.binary()))
+
+
+#: A block's status changes: these columns of ``transitions``, fixed-width, in this order.
+_BLOCK_COLUMNS = (
+    ("seq", "seq", "q"),
+    ("t_ns", "t_ns", "q"),
+    ("tick", "tick", "q"),
+    ("uid", "uid::INTEGER", "i"),
+    ("prev", "enum_code(prev_status)::UTINYINT", "B"),
+    ("status", "enum_code(status)::UTINYINT", "B"),
+)
+_BLOCK_HEAD = struct.Struct("<Q")
+
+
+def _event_blocks(
+    con: duckdb.DuckDBPyConnection, run_id: str, every: int, writes: list[str]
+) -> list[bytes]:
+    """The ``events`` of each snapshot row (``writes``: each block's write rows as a
+    JSON list), zstd-compressed: the count of status changes (8 bytes), the status
+    changes as fixed-width columns (``_BLOCK_COLUMNS``, native byte order), then the
+    writes. The columns are cut from one sorted Arrow read of ``transitions``, so
+    nothing is done per row in Python."""
+    columns = ", ".join(f"{sql} AS {name}" for name, sql, _code in _BLOCK_COLUMNS)
+    params = {"run_id": run_id, "k": every}
+    rows = con.sql(
+        f"SELECT {columns} FROM transitions WHERE run_id = $run_id ORDER BY seq",
+        params={"run_id": run_id},
+    ).to_arrow_table()
+    counts = dict(
+        con.execute(
+            "SELECT seq // $k, count(*) FROM transitions WHERE run_id = $run_id GROUP BY ALL",
+            params,
+        ).fetchall()
+    )
+    buffers = []
+    for name, _sql, _code in _BLOCK_COLUMNS:
+        array = rows[name].combine_chunks()
+        width = array.type.bit_width // 8
+        values = array.buffers()[1] if len(array) else None
+        view = memoryview(b"") if values is None else memoryview(values)
+        buffers.append((view[array.offset * width :], width))
     compress = zstandard.ZstdCompressor(level=1).compress
-    blocks = [
-        compress(b'{"status":%s,"writes":%s}' % (status.encode(), writes.encode()))
-        for status, writes in zip(
-            rows["status_block"].to_pylist(), rows["write_block"].to_pylist(), strict=True
-        )
-    ]
-    table = rows.drop_columns(["status_block", "write_block"])
-    insert_arrow(con, "_snapshots", run_id, table.append_column("events", pa.array(blocks)))
-    return table.num_rows
+    blocks, lo = [], 0
+    for index, written in enumerate(writes):
+        hi = lo + counts.get(index, 0)
+        parts = [_BLOCK_HEAD.pack(hi - lo)]
+        parts.extend(buffer[lo * width : hi * width] for buffer, width in buffers)
+        parts.append(written.encode())
+        blocks.append(compress(b"".join(parts)))
+        lo = hi
+    return blocks
 
 
 def _spans(name: str, where: str, partition: str, columns: str) -> str:
@@ -248,12 +314,6 @@ SNAPSHOTS_SQL = (
         UNION ALL SELECT seq, t_ns, tick FROM blackboard WHERE run_id = $run_id
         UNION ALL SELECT seq, t_ns, tick FROM _mutations WHERE run_id = $run_id),
     bounds AS (SELECT unnest(range(0, $n // $k + 1)) * $k AS b),
-    status_blocks AS (
-        SELECT seq // $k * $k AS b,
-            [list(seq ORDER BY seq), list(t_ns ORDER BY seq), list(tick ORDER BY seq),
-             list(uid ORDER BY seq), list(enum_code(prev_status)::BIGINT ORDER BY seq),
-             list(enum_code(status)::BIGINT ORDER BY seq)]::JSON AS block
-        FROM transitions WHERE run_id = $run_id GROUP BY ALL),
     write_blocks AS (
         SELECT seq // $k * $k AS b,
             list(json_array(seq, t_ns, tick, scope, key, value, type, writer_uid)
@@ -284,7 +344,6 @@ SNAPSHOTS_SQL = (
             'last_leaf', leaf.uid,
             'blackboard', coalesce(bb.blackboard, '{{}}'::JSON),
             'blackboard_refs', rf.refs)::VARCHAR AS state,
-        coalesce(sb.block, '[[], [], [], [], [], []]')::VARCHAR AS status_block,
         coalesce(wb.block, '[]')::VARCHAR AS write_block
     FROM bounds
     LEFT JOIN last_event l USING (b)
@@ -296,7 +355,6 @@ SNAPSHOTS_SQL = (
     LEFT JOIN leaf_at leaf ON leaf.b = bounds.b
     LEFT JOIN boards bb ON bb.b = bounds.b
     LEFT JOIN refs rf ON rf.b = bounds.b
-    LEFT JOIN status_blocks sb ON sb.b = bounds.b
     LEFT JOIN write_blocks wb ON wb.b = bounds.b
     ORDER BY bounds.b"""
 )

@@ -17,7 +17,7 @@ import pyarrow as pa
 from btlog.status import STATUS_NAMES
 
 #: The layout of the read model; part of the cache key (bump when a table changes).
-INGEST_VERSION = "3"
+INGEST_VERSION = "4"
 
 SCHEMA = (
     # Status is numbered as BT.CPP numbers it; the ENUM uses the same order.
@@ -100,8 +100,9 @@ def identifier(name: str) -> str:
 def insert_arrow(
     con: duckdb.DuckDBPyConnection, table_name: str, run_id: str, table: pa.Table
 ) -> None:
-    """Insert an Arrow table whose columns are the table's, without ``run_id``."""
-    view = f"_arrow_{table_name}"
+    """Insert an Arrow table whose columns are the table's, without ``run_id``
+    (``table_name`` may name its catalog: ``catalog._snapshots``)."""
+    view = "_arrow_" + table_name.replace(".", "_")
     con.register(view, table)
     try:
         names = ", ".join(table.column_names)
