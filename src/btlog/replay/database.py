@@ -16,14 +16,15 @@ ingested into an in-memory catalog.
 
 **The state at a moment.** ``Run.state_at(moment)`` resolves the moment to a number of
 events (``btlog.replay.moments``) and reads one row of ``_snapshots``: the state every
-``snapshot_every`` events together with the block of events up to the next snapshot.
-The snapshots are built on the first state asked for (a question in SQL needs only the
-tables), into a file beside the run's cache (``Run.snapshots_table``). It folds only the events of that block up to the moment with
-``StateProjection`` — never the run from its start — so every moment of a long run
-costs the same: one point query and at most ``snapshot_every`` events. Times and ticks
-are resolved from the same rows (each knows the time and tick of its first event). The
-tree's shape comes from the same fold: mutations before the snapshot are re-applied to
-the recorded tree, later ones are folded with the tail.
+``snapshot_every`` events together with the block of events up to the next snapshot. The
+snapshots are built on the first state asked for (a question in SQL needs only the
+tables), into a file beside the run's cache (``Run.snapshots_table``). It folds only the
+events of that block up to the moment with ``StateProjection`` — never the run from its
+start — so every moment of a long run costs the same: one point query and at most
+``snapshot_every`` events. Times and ticks are resolved from the same rows (each knows
+the time and tick of its first event). The tree's shape comes from the same fold:
+mutations before the snapshot are re-applied to the recorded tree, later ones are folded
+with the tail.
 
 Errors are ``ReplayError`` (unreadable recordings, unknown runs or nodes, bad SQL) or
 ``MomentError`` (moments), both ``ValueError`` with a one-line message.

@@ -14,6 +14,7 @@ the tables (``fetch_events``; ``btlog.replay.database``).
 from __future__ import annotations
 
 import struct
+from array import array
 from bisect import bisect_left, bisect_right
 from dataclasses import dataclass, field
 from typing import Any, cast
@@ -127,7 +128,9 @@ class EventBatch:
         at, columns = _BLOCK_HEAD.size, []
         for _name, _sql, code in _BLOCK_COLUMNS:
             end = at + count * struct.calcsize(code)
-            columns.append(view[at:end].cast(code).tolist())
+            values = array(code)
+            values.frombytes(view[at:end])
+            columns.append(values.tolist())
             at = end
         writes = [BlackboardWrite(*row) for row in orjson.loads(view[at:])]
         seq, t_ns, tick, uid, prev, status = columns
@@ -251,7 +254,7 @@ def _event_blocks(
     blocks, lo = [], 0
     for index, written in enumerate(writes):
         hi = lo + counts.get(index, 0)
-        parts = [_BLOCK_HEAD.pack(hi - lo)]
+        parts: list[bytes | memoryview] = [_BLOCK_HEAD.pack(hi - lo)]
         parts.extend(buffer[lo * width : hi * width] for buffer, width in buffers)
         parts.append(written.encode())
         blocks.append(compress(b"".join(parts)))
