@@ -113,12 +113,18 @@ class StatefulAction(Behavior):
 class AlwaysSuccess(SyncAction):
     """SUCCESS, at once."""
 
+    #: a constant cannot be RUNNING: no check of the result (the hot path)
+    execute_tick = Behavior.execute_tick
+
     def tick(self) -> Status:
         return SUCCESS
 
 
 class AlwaysFailure(SyncAction):
     """FAILURE, at once."""
+
+    #: a constant cannot be RUNNING: no check of the result (the hot path)
+    execute_tick = Behavior.execute_tick
 
     def tick(self) -> Status:
         return FAILURE

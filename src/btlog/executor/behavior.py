@@ -132,8 +132,12 @@ class Behavior:
         if self._conditions is not None:
             return self._execute_with_conditions(self._conditions)
         new = self.tick()
-        if new is not SKIPPED:
-            self.set_status(new)
+        prev = self.status
+        if new is not prev and new is not SKIPPED:  # set_status, inlined: the hot path
+            self.status = new
+            emit = self.runtime.emit_status
+            if emit is not None:
+                emit(self.uid, prev, new)
         return new
 
     def _execute_with_conditions(self, conditions: _Conditions) -> Status:
@@ -210,10 +214,16 @@ class Behavior:
 
     def reset_children(self) -> None:
         """Halt RUNNING children and reset all of them, in order."""
+        emit = self.runtime.emit_status
         for child in self.children:
-            if child.status is RUNNING:
+            prev = child.status
+            if prev is RUNNING:
                 child.halt_node()
-            child.reset_status()
+                child.reset_status()
+            elif prev is not IDLE:  # reset_status, inlined: the hot path
+                child.status = IDLE
+                if emit is not None:
+                    emit(child.uid, prev, IDLE)
 
     # -- ports -------------------------------------------------------------------------
     def _port(self, name: str) -> tuple[str | None, str]:

@@ -27,6 +27,8 @@ class _InOrder(ControlBehavior):
 
     decisive: Status
     exhausted: Status
+    #: whether ``_wakes_up`` may end a tick early (skips the call per child when not)
+    may_wake_up = False
 
     def __init__(self, *args: Any) -> None:
         super().__init__(*args)
@@ -37,20 +39,20 @@ class _InOrder(ControlBehavior):
         if self.status is IDLE:
             self.skipped = 0
         self.set_status(RUNNING)
-        children = self.children
+        children, decisive, may_wake_up = self.children, self.decisive, self.may_wake_up
         while self.index < len(children):
             child = children[self.index]
             before = child.status
             result = child.execute_tick()
             if result is RUNNING:
                 return RUNNING
-            if result is self.decisive:
+            if result is decisive:
                 self._decided()
                 return result
             self.index += 1
             if result is SKIPPED:
                 self.skipped += 1
-            elif self._wakes_up(before):
+            elif may_wake_up and self._wakes_up(before):
                 return RUNNING
         return self._finish()
 
@@ -98,6 +100,8 @@ class SequenceWithMemory(Sequence):
     def _decided(self) -> None:
         for i in range(self.index, len(self.children)):
             self.halt_child(i)
+
+    may_wake_up = True
 
     def _wakes_up(self, before: Status) -> bool:
         return self.wake_up_early(before, self.index < len(self.children))
