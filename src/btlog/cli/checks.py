@@ -26,13 +26,13 @@ from btlog.checks.expectations import (
     load_expectations,
     rerun,
 )
+from btlog.errors import EXIT_CHECK_FAILED, EXIT_OK
 from btlog.explain.behaviours import diff_paths
 from btlog.explain.divergence import to_json
 from btlog.render.divergence import render_lines
 from btlog.render.escape import safe
 from btlog.render.terminal import make_console
 
-EXIT_OK, EXIT_CHECK_FAILED = 0, 1
 _STYLES = {
     "title": "bold",
     "header": "bold",

@@ -16,6 +16,7 @@ from typing import TYPE_CHECKING
 from rich.progress import BarColumn, Progress, TextColumn, TimeElapsedColumn
 from rich.text import Text
 
+from btlog.errors import EXIT_BAD_INPUT, EXIT_OK
 from btlog.explain.hierarchy import current_nodes
 from btlog.explain.insertion import apply_to_copy
 from btlog.explain.questions import Answer, answer
@@ -102,7 +103,7 @@ def run(args: Namespace) -> int:
         print(f"btlog run: warning: {safe(warning)}", file=sys.stderr)
     for refusal in result.refused:
         print(f"btlog run: {safe(refusal)} (not answered)", file=sys.stderr)
-    return 2 if result.refused else 0
+    return EXIT_BAD_INPUT if result.refused else EXIT_OK
 
 
 # -- questions ---------------------------------------------------------------------------

@@ -18,17 +18,12 @@ from typing import NoReturn
 
 from btlog import __version__
 from btlog.cli.limit_flags import add_limit_flags, apply_limit_flags
-from btlog.errors import one_line
+from btlog.errors import EXIT_BAD_INPUT, EXIT_BUG, EXIT_OK, one_line
 from btlog.render.escape import safe
 
-EXIT_OK, EXIT_CHECK_FAILED, EXIT_BAD_INPUT, EXIT_BUG = 0, 1, 2, 3
 #: Options whose value may be a negative moment (``--at -2s``, ``--ask "-2s=…"``).
 MOMENT_OPTIONS = ("--at", "--from", "--to", "--ask")
 _NEGATIVE = re.compile(r"^-[\d.]")
-
-
-class BadInput(Exception):
-    """Raised by commands for bad input; the message is the one line shown."""
 
 
 class OneLineParser(argparse.ArgumentParser):
@@ -269,7 +264,7 @@ def _is_bad_input(error: BaseException) -> bool:
 
     from btlog.executor.behavior import NodeExecutionError
 
-    return isinstance(error, ValueError | OSError | BadInput | duckdb.Error | NodeExecutionError)
+    return isinstance(error, ValueError | OSError | duckdb.Error | NodeExecutionError)
 
 
 def join_negative_moments(argv: Sequence[str]) -> list[str]:
