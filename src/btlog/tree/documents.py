@@ -1,0 +1,206 @@
+"""The documents of a tree: ``<root>`` files, their ``<include>``s, the ``<BehaviorTree>``
+definitions they hold and the node types their ``<TreeNodesModel>`` declares.
+
+An include is resolved against the including file's folder, at most
+``MAX_INCLUDE_DEPTH`` deep and never in a cycle. BT.CPP-written XML (``WriteTreeToXML``)
+repeats a subtree once per instance, each with its ``_fullpath``: the first definition of
+an ID is the definition, every instance is kept by its full path.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+from pathlib import Path
+
+from lxml import etree
+
+from btlog import limits
+from btlog.tree.model import ACTION, CONDITION, CONTROL, DECORATOR, SUBTREE
+from btlog.tree.registry import NodeType, PortSpec, Registry
+from btlog.tree.xml_source import TreeError, parse_xml
+
+MAX_INCLUDE_DEPTH = 16
+MODEL_KINDS = {
+    "Action": ACTION,
+    "Condition": CONDITION,
+    "Control": CONTROL,
+    "Decorator": DECORATOR,
+    "SubTree": SUBTREE,
+}
+MODEL_PORT_TAGS = {
+    "input_port": "input",
+    "output_port": "output",
+    "inout_port": "inout",
+    "bidirectional_port": "inout",  # Nav2's nav2_tree_nodes.xml spelling
+}
+
+
+@dataclass(frozen=True)
+class Definition:
+    """A ``<BehaviorTree>`` element and the file it is in."""
+
+    element: etree._Element
+    file: str
+
+    def root_element(self) -> etree._Element:
+        """The tree's one node element."""
+        return next(c for c in self.element if isinstance(c.tag, str))
+
+
+@dataclass
+class Document:
+    """One ``<root>`` file: its format (None when not given) and main tree."""
+
+    file: str
+    root: etree._Element
+    format: int | None
+    main: str | None
+
+
+@dataclass
+class Documents:
+    """Everything read from a file and its includes; ``registry`` gains the declared types."""
+
+    registry: Registry
+    documents: list[Document] = field(default_factory=list)
+    definitions: dict[str, Definition] = field(default_factory=dict)
+    #: subtree instances of BT.CPP-written XML, by their ``_fullpath``
+    instances: dict[str, Definition] = field(default_factory=dict)
+
+    def read(
+        self, data: bytes, file: str, folder: Path, depth: int = 0, seen: tuple[str, ...] = ()
+    ) -> None:
+        """Read the document ``data`` (from ``file``) and, recursively, what it includes."""
+        root = parse_xml(data, file)
+        if root.tag != "root":
+            raise TreeError(
+                f"the top element must be <root>, not <{root.tag}>", file, root.sourceline
+            )
+        fmt = root.get("BTCPP_format")
+        if fmt is not None and fmt.strip() not in ("3", "4"):
+            raise TreeError(f"unsupported BTCPP_format {fmt!r} (3 or 4)", file, root.sourceline)
+        self.documents.append(
+            Document(file, root, int(fmt) if fmt else None, root.get("main_tree_to_execute"))
+        )
+        children = [c for c in root if isinstance(c.tag, str)]
+        for element in children:
+            if element.tag == "BehaviorTree":
+                self._define(element, file, len(children))
+            elif element.tag == "TreeNodesModel":
+                self.read_model(element, file)
+            elif element.tag == "include":
+                self._include(element, file, folder, depth, (*seen, file))
+            else:
+                raise TreeError(
+                    f"unexpected element <{element.tag}> under <root>", file, element.sourceline
+                )
+
+    def main_tree(self, requested: str | None) -> str:
+        """The ID of the tree to build: ``requested``, else the first document's
+        ``main_tree_to_execute``, else the only tree."""
+        first = self.documents[0]
+        file, line = first.file, first.root.sourceline
+        main = requested or first.main
+        if not self.definitions:
+            raise TreeError("no <BehaviorTree> is defined", file, line)
+        if main is None:
+            if len(self.definitions) != 1:
+                raise TreeError("several <BehaviorTree> and no main_tree_to_execute", file, line)
+            main = next(iter(self.definitions))
+        if main not in self.definitions:
+            raise TreeError(f"main tree {main!r} is not defined", file, line)
+        return main
+
+    def _define(self, element: etree._Element, file: str, siblings: int) -> None:
+        tree_id = element.get("ID")
+        if tree_id is None:
+            if siblings > 1:
+                raise TreeError(
+                    "<BehaviorTree> needs an ID when <root> has several children",
+                    file,
+                    element.sourceline,
+                )
+            tree_id = f"BehaviorTree_{len(self.definitions)}"
+        fullpath = element.get("_fullpath")
+        if fullpath is not None and fullpath not in self.instances:
+            self.instances[fullpath] = Definition(element, file)
+            if tree_id in self.definitions:
+                return  # another instance of a subtree, in BT.CPP-written XML
+        if tree_id in self.definitions:
+            raise TreeError(f"tree {tree_id!r} is defined twice", file, element.sourceline)
+        nodes = [c for c in element if isinstance(c.tag, str)]
+        if len(nodes) != 1:
+            raise TreeError(
+                f"<BehaviorTree ID={tree_id!r}> must have exactly one child, found {len(nodes)}",
+                file,
+                element.sourceline,
+            )
+        self.definitions[tree_id] = Definition(element, file)
+
+    def _include(
+        self, element: etree._Element, file: str, folder: Path, depth: int, seen: tuple[str, ...]
+    ) -> None:
+        target = element.get("path")
+        if not target:
+            raise TreeError("<include> needs a path attribute", file, element.sourceline)
+        if element.get("ros_pkg"):
+            raise TreeError(
+                "<include ros_pkg=…> needs ROS, which btlog does not use", file, element.sourceline
+            )
+        path = (folder / target).resolve()
+        if depth >= MAX_INCLUDE_DEPTH or str(path) in {str(Path(s).resolve()) for s in seen}:
+            raise TreeError(
+                f"include cycle or nesting too deep at {target!r}", file, element.sourceline
+            )
+        try:
+            data = limits.read_bounded(path)
+        except OSError as error:
+            raise TreeError(
+                f"cannot read included file {target!r}: {error.strerror}", file, element.sourceline
+            ) from None
+        except limits.LimitError as error:
+            raise TreeError(
+                f"included file {target!r}: {error}", file, element.sourceline
+            ) from None
+        self.read(data, str(path), path.parent, depth + 1, seen)
+
+    def read_model(self, element: etree._Element, file: str) -> None:
+        """Register the node types a ``<TreeNodesModel>`` declares (a type btlog implements
+        keeps its implementation; a SubTree's model gives its ports)."""
+        for entry in element:
+            if not isinstance(entry.tag, str):
+                continue
+            kind = MODEL_KINDS.get(entry.tag)
+            type_id = entry.get("ID")
+            if kind is None or not type_id:
+                raise TreeError(
+                    f"<{entry.tag}> in <TreeNodesModel> needs a known tag and an ID",
+                    file,
+                    entry.sourceline,
+                )
+            ports = _model_ports(entry, type_id, file)
+            existing = self.registry.get(type_id)
+            if kind == SUBTREE:
+                self.registry.register(NodeType(type_id, SUBTREE, ports, declared_only=True))
+            elif existing is None or existing.declared_only:
+                children = {CONTROL: (1, None), DECORATOR: (1, 1)}.get(kind, (0, 0))
+                self.registry.register(
+                    NodeType(type_id, kind, ports, children=children, declared_only=True)
+                )
+
+
+def _model_ports(entry: etree._Element, type_id: str, file: str) -> dict[str, PortSpec]:
+    ports = {}
+    for port in entry:
+        if not isinstance(port.tag, str) or port.tag == "MetadataFields":
+            continue
+        direction = MODEL_PORT_TAGS.get(port.tag)
+        name = port.get("name")
+        if direction is None or not name:
+            raise TreeError(
+                f"unexpected <{port.tag}> in the model of {type_id!r}", file, port.sourceline
+            )
+        ports[name] = PortSpec(
+            direction, port.get("type") or "str", port.get("default"), (port.text or "").strip()
+        )
+    return ports
