@@ -23,9 +23,8 @@ from btlog.checks.expectations import (
     check_run,
     load_expectations,
     record_expectations,
-    rerun,
-    tree_for_rerun,
 )
+from btlog.checks.rerun import rerun, tree_for_rerun
 from btlog.runner import RunConfig, execute
 
 ROOT = Path(__file__).resolve().parents[1]

@@ -1,20 +1,16 @@
-"""Regression checks on stored runs: expectations, re-recording, and re-running.
+"""Regression checks on stored runs by expectations files.
 
 An expectations file pins down what a run *was*: its final status, answers to questions
 and node statuses at moments (validated by ``schemas/expectations.schema.json``).
 Checking replays the run to each moment and compares; re-recording writes the actual
-values back, as snapshot-testing tools do. A re-run pins down what a run *does*: the
-tree runs again with the recorded settings and the two behaviours are compared subgoal
-by subgoal (``btlog.explain.divergence``). ``btlog check`` and the pytest plugin both
-use these functions. See docs/design.md, "Checks".
+values back, as snapshot-testing tools do. ``btlog check`` and the pytest plugin both
+use these functions (re-running is ``btlog.checks.rerun``). See docs/design.md, "Checks".
 """
 
 from __future__ import annotations
 
-import hashlib
 import os
-import tempfile
-from dataclasses import dataclass, field, replace
+from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
 
@@ -22,37 +18,22 @@ import yaml
 from jsonschema.exceptions import ValidationError
 
 from btlog import documents
+from btlog.checks.stored_run import CheckResult, StoredRun
 from btlog.errors import one_line
-from btlog.explain.behaviours import executed_actions
-from btlog.explain.divergence import (
-    Divergence,
-    ExecutedAction,
-    SubgoalDivergence,
-    diverge,
-    to_json,
-)
-from btlog.explain.questions import UnknownQuestion, answer, parse_question
-from btlog.record.reader import Recording, open_recording
-from btlog.render.divergence import move_text, render
-from btlog.state import State
-from btlog.status import Status
-from btlog.tree.model import Tree
+from btlog.explain.questions import UnknownQuestion, parse_question
 
 __all__ = [
     "AnswerExpectation",
-    "CheckResult",
     "ExpectationError",
     "Expectations",
-    "RerunError",
-    "RerunReport",
     "StatusExpectation",
-    "StoredRun",
+    "check_answer",
+    "check_final_status",
     "check_run",
-    "final_status_of",
+    "check_status",
     "load_expectations",
     "parse_expectations",
     "record_expectations",
-    "rerun",
     "write_expectations",
 ]
 
@@ -184,113 +165,6 @@ def write_expectations(path: str | os.PathLike, data: dict) -> None:
     Path(path).write_text(text, encoding="utf-8")
 
 
-# -- a stored run, asked at moments --------------------------------------------------------
-def final_status_of(recording: Recording) -> str:
-    """How a recorded run ended: the root status of its last tick (IDLE if it never
-    ticked; RUNNING if it was stopped or cut short while running)."""
-    ticks = [t for t in recording.ticks if not t.teardown]  # the teardown's root is IDLE
-    return ticks[-1].root_status.name if ticks else Status.IDLE.name
-
-
-class StoredRun:
-    """A recorded run opened for checks: the state, answers and statuses at moments, and
-    the final status. Use as a context manager, or call ``close``."""
-
-    def __init__(self, path: str | os.PathLike) -> None:
-        from btlog.replay.database import open_runs
-
-        self.path = os.fspath(path)
-        self._recording: Recording | None = None
-        self._database = open_runs(self.path)
-        try:
-            self._run = self._database.run(self.path)
-        except BaseException:
-            self._database.close()
-            raise
-
-    def __enter__(self) -> StoredRun:
-        return self
-
-    def __exit__(self, *exc_info: object) -> None:
-        self.close()
-
-    def close(self) -> None:
-        """Release the read model."""
-        self._database.close()
-
-    @property
-    def recording(self) -> Recording:
-        """The recording itself (read on first use)."""
-        if self._recording is None:
-            self._recording = open_recording(self.path)
-        return self._recording
-
-    def state_at(self, at: str) -> tuple[Tree, State]:
-        """The tree and the state at moment ``at`` (any moment form)."""
-        return self._run.state_at(str(at))
-
-    def answer(self, at: str, question: str) -> str:
-        """The answer to ``question`` at moment ``at``."""
-        tree, state = self.state_at(at)
-        return answer(tree, state, question, self._run.history()).text
-
-    def status(self, at: str, node: str) -> str:
-        """The status name of ``node`` (name, type or path) at moment ``at``."""
-        tree, state = self.state_at(at)
-        return state.status_of(tree.lookup_one(node).uid).name
-
-    @property
-    def final_status(self) -> str:
-        """How the run ended: the root status of its last tick (as in the read model's
-        ``runs.final_status``; IDLE when the run never ticked)."""
-        return self._run.info.final_status or Status.IDLE.name
-
-    @property
-    def actions(self) -> list[ExecutedAction]:
-        """The run's executed actions (see ``btlog.explain.divergence``)."""
-        return executed_actions(self.recording)
-
-
-# -- checking ------------------------------------------------------------------------------
-@dataclass(frozen=True)
-class CheckResult:
-    """One check: ``what`` was checked, ``expected`` and ``actual`` (text), ``ok``;
-    ``detail`` is an optional longer report (e.g. the side-by-side divergence)."""
-
-    ok: bool
-    what: str
-    expected: str
-    actual: str
-    detail: str = ""
-
-    def report(self) -> str:
-        """Readable lines: a one-line verdict, then expected/actual on failure."""
-        return "\n".join(self.report_lines())
-
-    def report_lines(self) -> list[str]:
-        """The lines of ``report`` (a name holding a newline stays inside its line)."""
-        if self.ok:
-            return [f"ok    {self.what}"]
-        lines = [
-            f"FAIL  {self.what}",
-            f"        expected: {self.expected}",
-            f"        actual:   {self.actual}",
-        ]
-        if self.detail:
-            lines += ["        " + line if line else "" for line in self.detail.splitlines()]
-        return lines
-
-    def to_json(self) -> dict:
-        """JSON-ready form."""
-        return {
-            "ok": self.ok,
-            "what": self.what,
-            "expected": self.expected,
-            "actual": self.actual,
-            **({"detail": self.detail} if self.detail else {}),
-        }
-
-
 def _entry_error(source: str, where: str, error: Exception) -> ExpectationError:
     return ExpectationError(f"{source}: {where}: {one_line(error)}")
 
@@ -405,164 +279,3 @@ def _record(run: StoredRun, expected: Expectations) -> dict:
     if "rerun" in data:
         recorded["rerun"] = data["rerun"]
     return recorded
-
-
-# -- re-running ----------------------------------------------------------------------------
-class RerunError(ValueError):
-    """A run that cannot be re-run (its tree file is gone); one line."""
-
-
-@dataclass
-class RerunReport:
-    """A stored run against a fresh run of its tree: the divergence of their actions,
-    both final statuses, and the checks (final status, then one per subgoal)."""
-
-    run: str
-    tree: str
-    tree_changed: bool
-    recorded_status: str
-    rerun_status: str
-    divergence: Divergence
-    results: list[CheckResult]
-
-    @property
-    def ok(self) -> bool:
-        """True when the re-run ended the same way and no subgoal diverges."""
-        return all(result.ok for result in self.results)
-
-    def render(self) -> str:
-        """A readable report: the checks, and the side-by-side view of what differs."""
-        return "\n".join(self.render_lines())
-
-    def render_lines(self) -> list[str]:
-        """The lines of ``render`` (a name holding a newline stays inside its line)."""
-        changed = " (changed since the recording)" if self.tree_changed else ""
-        lines = [f"re-run of {self.run} with {self.tree}{changed}"]
-        for result in self.results:
-            lines += result.report_lines()
-        if not self.divergence.identical:
-            lines += ["", *render(self.divergence, only_divergent=True).splitlines()]
-        return lines
-
-    def to_json(self) -> dict:
-        """JSON-ready form."""
-        return {
-            "run": self.run,
-            "tree": self.tree,
-            "tree_changed": self.tree_changed,
-            "ok": self.ok,
-            "recorded_status": self.recorded_status,
-            "rerun_status": self.rerun_status,
-            "checks": [result.to_json() for result in self.results],
-            "divergence": to_json(self.divergence),
-        }
-
-
-def project_of(run_path: str | os.PathLike) -> Path:
-    """The recording's project: the nearest folder at or above the recording that holds a
-    ``pyproject.toml``, else the current directory."""
-    folder = Path(run_path).resolve().parent
-    for base in (folder, *folder.parents):
-        if (base / "pyproject.toml").is_file():
-            return base
-    return Path.cwd()
-
-
-def tree_for_rerun(
-    run_path: str | os.PathLike, metadata: dict, tree: str | os.PathLike | None = None
-) -> str:
-    """The tree file to re-run: ``tree`` if given, else the recorded tree file as it was
-    given, relative to the recording's project (``project_of``), then its recorded
-    absolute path (the machine that recorded it)."""
-    if tree:
-        return os.fspath(tree)
-    recorded = metadata.get("tree_file") or ""
-    candidates = [project_of(run_path) / recorded] if recorded else []
-    if metadata.get("tree_file_abs"):
-        candidates.append(Path(metadata["tree_file_abs"]))
-    for candidate in candidates:
-        if candidate.is_file():
-            return os.fspath(candidate)
-    raise RerunError(
-        f"{os.fspath(run_path)}: the recorded tree file {recorded!r} is not found in the "
-        f"recording's project ({project_of(run_path)}) nor at its recorded absolute path; "
-        "pass --tree TREE"
-    )
-
-
-def _sha256(path: str) -> str:
-    return hashlib.sha256(Path(path).read_bytes()).hexdigest()
-
-
-def _action_text(action: ExecutedAction) -> str:
-    return (
-        f'"{action.description}" (in {action.parent})'
-        if action.parent
-        else f'"{action.description}"'
-    )
-
-
-def subgoal_check(found: SubgoalDivergence) -> CheckResult:
-    """The check of one subgoal's actions: recorded (A) against re-run (B)."""
-    what = f'actions of subgoal "{found.subgoal}"'
-    expected = f"the {len(found.a_actions)} recorded actions"
-    if not found.diverges:
-        return CheckResult(True, what, expected, f"the same {len(found.b_actions)} actions")
-    parts = [f"edit distance {found.edit_distance}, LCS length {len(found.lcs)}"]
-    parts += [move_text(move) for move in found.moves]
-    moved = set(found.moved)
-    only_a = [_action_text(a) for a in found.only_a if a.description not in moved]
-    only_b = [_action_text(b) for b in found.only_b if b.description not in moved]
-    if only_a:
-        parts.append("only in the recording: " + ", ".join(only_a))
-    if only_b:
-        parts.append("only in the re-run: " + ", ".join(only_b))
-    return CheckResult(False, what, expected, "; ".join(parts))
-
-
-def rerun(
-    run_path: str | os.PathLike,
-    tree: str | os.PathLike | None = None,
-    keep: str | os.PathLike | None = None,
-) -> RerunReport:
-    """Execute the run's tree again with its recorded settings and compare the behaviours.
-
-    The tree is the recorded tree file as it is now, or ``tree``. The re-run uses the
-    recorded domain, seed, outcomes, ``--fail`` specs and live questions, on the simulated
-    clock, into a temporary file (or into ``keep``, which is left in place). Any divergent
-    action or another final status fails.
-    """
-    from btlog.runner import RunConfig, execute
-
-    recorded = open_recording(run_path)
-    tree_path = tree_for_rerun(run_path, recorded.metadata, tree)
-    config = replace(RunConfig.from_metadata(recorded.metadata, tree=tree_path), realtime=False)
-    with tempfile.TemporaryDirectory(prefix="btlog-rerun-") as folder:
-        result = execute(config, keep if keep is not None else Path(folder) / "rerun.mcap")
-        again = open_recording(result.path)
-    recorded_status = final_status_of(recorded)
-    divergence = diverge(
-        executed_actions(recorded),
-        executed_actions(again),
-        f"{os.fspath(run_path)} (recorded)",
-        f"{tree_path} (re-run)",
-    )
-    results = [
-        CheckResult(
-            recorded_status == result.final_status.name,
-            "final status",
-            recorded_status,
-            result.final_status.name,
-        )
-    ]
-    results += [subgoal_check(found) for found in divergence.subgoals]
-    changed = _sha256(tree_path) != recorded.metadata.get("tree_sha256")
-    return RerunReport(
-        os.fspath(run_path),
-        tree_path,
-        changed,
-        recorded_status,
-        result.final_status.name,
-        divergence,
-        results,
-    )

@@ -39,7 +39,8 @@ import pytest
 if TYPE_CHECKING:
     from _pytest._code.code import TerminalRepr, TracebackStyle
 
-    from btlog.checks.expectations import CheckResult, Expectations, StoredRun
+    from btlog.checks.expectations import Expectations
+    from btlog.checks.stored_run import CheckResult, StoredRun
 
 SUFFIX = ".expect.yaml"
 UPDATE_OPTION = "--btlog-update"
@@ -96,7 +97,8 @@ def _updated(config: pytest.Config, path: Path) -> None:
 
 def _readable(error: BaseException) -> str | None:
     """The report of a btlog failure or bad input (one line), else None."""
-    from btlog.checks.expectations import ExpectationError, RerunError
+    from btlog.checks.expectations import ExpectationError
+    from btlog.checks.rerun import RerunError
     from btlog.record.reader import RecordingError
 
     if isinstance(error, BtlogCheckFailed):
@@ -138,7 +140,7 @@ class ExpectFile(pytest.File):
 
     def stored_run(self) -> StoredRun:
         """The recording opened once for all items of this file."""
-        from btlog.checks.expectations import StoredRun
+        from btlog.checks.stored_run import StoredRun
 
         if self._run is None:
             self._run = StoredRun(self.run_path)
@@ -210,7 +212,7 @@ class ExpectItem(pytest.Item):
         return ex.check_status(run, expected.statuses[index], expected.source)
 
     def _rerun(self) -> None:
-        from btlog.checks.expectations import rerun
+        from btlog.checks.rerun import rerun
 
         report = rerun(self.file.run_path)
         if not report.ok:
@@ -246,7 +248,7 @@ def btlog_run(
     """A factory opening stored runs: ``run = btlog_run("recordings/kitting-1.mcap")``;
     then ``run.answer(at, question)``, ``run.status(at, node)``, ``run.final_status``,
     ``run.state_at(at)``, ``run.actions``. Runs are closed after the test."""
-    from btlog.checks.expectations import StoredRun
+    from btlog.checks.stored_run import StoredRun
 
     opened: list[StoredRun] = []
 
@@ -267,7 +269,7 @@ def btlog_expect(request: pytest.FixtureRequest) -> Callable[..., list[CheckResu
     ``expectations`` is a mapping or an expectations file. Fails the test with a
     readable report; with ``--btlog-update`` a file is re-recorded instead.
     Returns the check results."""
-    from btlog.checks import expectations as ex
+    from btlog.checks.rerun import rerun as rerun_run
 
     def expect(
         run_path: str | os.PathLike,
@@ -280,7 +282,7 @@ def btlog_expect(request: pytest.FixtureRequest) -> Callable[..., list[CheckResu
         if expectations is not None:
             results = _expect(request, path, expectations)
         if rerun:
-            report = ex.rerun(path, _resolve(request, tree) if tree else None)
+            report = rerun_run(path, _resolve(request, tree) if tree else None)
             results += report.results
             if not report.ok:
                 pytest.fail(report.render(), pytrace=False)
