@@ -6,6 +6,8 @@ The trees, the scripted leaves and the oracle cross-check are described in
 
 from __future__ import annotations
 
+import pytest
+
 from tests.nodes_support import (
     act,
     cond,
@@ -134,57 +136,21 @@ def test_while_do_else_without_else_fails_and_halts_the_do_branch() -> None:
     }
 
 
-def test_switch_matches_strings() -> None:
-    """Switch2 compares the variable to each case as strings first. It never sets itself RUNNING
-    before ticking: its own IDLE->SUCCESS comes after the child's reset."""
+@pytest.mark.parametrize(
+    ("value", "case"),
+    [
+        pytest.param("&apos;b&apos;", "b", id="strings"),
+        pytest.param("2", "02", id="integers"),  # compared as integers
+        pytest.param("0.5", "0.50", id="reals"),  # compared as reals
+    ],
+)
+def test_switch_matches(value: str, case: str) -> None:
+    """Switch2 compares the variable to each case as strings, then as integers, then as reals.
+    It never sets itself RUNNING before ticking: its own IDLE->SUCCESS comes after the child's
+    reset."""
     r = run(
-        f'<Sequence name="q">{script("s", "v:=&apos;b&apos;")}'
-        '<Switch2 name="w" variable="{v}" '
-        f'case_1="a" case_2="b">{act("x")}{act("y")}{act("z")}</Switch2></Sequence>'
-    )
-    assert r.roots == ["SUCCESS"]
-    assert r.ticks == {
-        1: [
-            ("q", "IDLE", "RUNNING"),
-            ("s", "IDLE", "SUCCESS"),
-            ("y", "IDLE", "SUCCESS"),
-            ("y", "SUCCESS", "IDLE"),
-            ("w", "IDLE", "SUCCESS"),
-            ("s", "SUCCESS", "IDLE"),
-            ("w", "SUCCESS", "IDLE"),
-            ("q", "RUNNING", "SUCCESS"),
-            ("q", "SUCCESS", "IDLE"),
-        ],
-    }
-
-
-def test_switch_matches_integers() -> None:
-    """An integer entry 2 matches the case "02" (compared as integers)."""
-    r = run(
-        f'<Sequence name="q">{script("s", "v:=2")}<Switch2 name="w" variable="{{v}}" '
-        f'case_1="1" case_2="02">{act("x")}{act("y")}{act("z")}</Switch2></Sequence>'
-    )
-    assert r.roots == ["SUCCESS"]
-    assert r.ticks == {
-        1: [
-            ("q", "IDLE", "RUNNING"),
-            ("s", "IDLE", "SUCCESS"),
-            ("y", "IDLE", "SUCCESS"),
-            ("y", "SUCCESS", "IDLE"),
-            ("w", "IDLE", "SUCCESS"),
-            ("s", "SUCCESS", "IDLE"),
-            ("w", "SUCCESS", "IDLE"),
-            ("q", "RUNNING", "SUCCESS"),
-            ("q", "SUCCESS", "IDLE"),
-        ],
-    }
-
-
-def test_switch_matches_reals() -> None:
-    """A real entry 0.5 matches the case "0.50" (compared as reals)."""
-    r = run(
-        f'<Sequence name="q">{script("s", "v:=0.5")}<Switch2 name="w" variable="{{v}}" '
-        f'case_1="1" case_2="0.50">{act("x")}{act("y")}{act("z")}</Switch2></Sequence>'
+        f'<Sequence name="q">{script("s", f"v:={value}")}<Switch2 name="w" variable="{{v}}" '
+        f'case_1="1" case_2="{case}">{act("x")}{act("y")}{act("z")}</Switch2></Sequence>'
     )
     assert r.roots == ["SUCCESS"]
     assert r.ticks == {

@@ -7,6 +7,8 @@ The trees, the scripted leaves and the oracle cross-check are described in
 
 from __future__ import annotations
 
+import pytest
+
 from tests.nodes_support import (
     act,
     fail,
@@ -62,49 +64,13 @@ def test_failure_if_and_success_if_replace_the_tick_when_idle() -> None:
     assert r.executor.behaviors[r.tree.lookup("a")[0].uid].activations == 0
 
 
-def test_failure_if_is_not_checked_while_running() -> None:
-    """x becomes 1 while a runs: ``_failureIf`` is only checked from IDLE, a completes normally."""
+@pytest.mark.parametrize("attribute", ["_failureIf", "_skipIf"])
+def test_failure_if_and_skip_if_are_not_checked_while_running(attribute: str) -> None:
+    """x becomes 1 while a runs: ``_failureIf`` and ``_skipIf`` are only checked from IDLE,
+    a completes normally."""
     r = run(
         f'<Sequence name="top">{script("s", "x:=0")}<Parallel name="p" success_count="2">'
-        f'{act("a", _failureIf="x==1")}<Sequence name="q">{act("b")}{script("s2", "x:=1")}'
-        "</Sequence></Parallel></Sequence>",
-        {"a": [ok(3)], "b": [ok(1)]},
-    )
-    assert r.roots == ["RUNNING", "RUNNING", "RUNNING", "SUCCESS"]
-    assert r.ticks == {
-        1: [
-            ("top", "IDLE", "RUNNING"),
-            ("s", "IDLE", "SUCCESS"),
-            ("p", "IDLE", "RUNNING"),
-            ("a", "IDLE", "RUNNING"),
-            ("q", "IDLE", "RUNNING"),
-            ("b", "IDLE", "RUNNING"),
-        ],
-        2: [
-            ("b", "RUNNING", "SUCCESS"),
-            ("s2", "IDLE", "SUCCESS"),
-            ("b", "SUCCESS", "IDLE"),
-            ("s2", "SUCCESS", "IDLE"),
-            ("q", "RUNNING", "SUCCESS"),
-        ],
-        4: [
-            ("a", "RUNNING", "SUCCESS"),
-            ("a", "SUCCESS", "IDLE"),
-            ("q", "SUCCESS", "IDLE"),
-            ("p", "RUNNING", "SUCCESS"),
-            ("s", "SUCCESS", "IDLE"),
-            ("p", "SUCCESS", "IDLE"),
-            ("top", "RUNNING", "SUCCESS"),
-            ("top", "SUCCESS", "IDLE"),
-        ],
-    }
-
-
-def test_skip_if_is_not_checked_while_running() -> None:
-    """Like ``_failureIf``, ``_skipIf`` is only checked from IDLE."""
-    r = run(
-        f'<Sequence name="top">{script("s", "x:=0")}<Parallel name="p" success_count="2">'
-        f'{act("a", _skipIf="x==1")}<Sequence name="q">{act("b")}{script("s2", "x:=1")}'
+        f'{act("a", **{attribute: "x==1"})}<Sequence name="q">{act("b")}{script("s2", "x:=1")}'
         "</Sequence></Parallel></Sequence>",
         {"a": [ok(3)], "b": [ok(1)]},
     )

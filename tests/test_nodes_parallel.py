@@ -45,11 +45,19 @@ def test_parallel_default_thresholds_wait_for_all_successes() -> None:
     }
 
 
-def test_parallel_failure_halts_the_running_children() -> None:
-    """One failure (failure_count=1) halts the RUNNING children (RUNNING->IDLE) in child order."""
+@pytest.mark.parametrize(
+    "thresholds",
+    [
+        pytest.param('success_count="2" failure_count="1"', id="failure_count_reached"),
+        pytest.param('success_count="3" failure_count="3"', id="success_impossible"),
+    ],
+)
+def test_parallel_failure_halts_the_running_children(thresholds: str) -> None:
+    """One failure fails the Parallel, either because failure_count=1 is reached or because
+    success_count=3 has become impossible; it halts the RUNNING children (RUNNING->IDLE) in
+    child order."""
     r = run(
-        f'<Parallel name="p" success_count="2" failure_count="1">'
-        f"{act('a')}{act('b')}{act('c')}</Parallel>",
+        f'<Parallel name="p" {thresholds}>{act("a")}{act("b")}{act("c")}</Parallel>',
         {"a": [ok(2)], "b": [fail(1)], "c": [ok(3)]},
     )
     assert r.roots == ["RUNNING", "FAILURE"]
@@ -121,32 +129,6 @@ def test_parallel_negative_success_count() -> None:
             ("c", "SUCCESS", "IDLE"),
             ("p", "RUNNING", "SUCCESS"),
             ("p", "SUCCESS", "IDLE"),
-        ],
-    }
-
-
-def test_parallel_fails_as_soon_as_success_is_impossible() -> None:
-    """success_count=3: the first failure makes 3 successes impossible -> FAILURE at once."""
-    r = run(
-        f'<Parallel name="p" success_count="3" failure_count="3">'
-        f"{act('a')}{act('b')}{act('c')}</Parallel>",
-        {"a": [ok(2)], "b": [fail(1)], "c": [ok(3)]},
-    )
-    assert r.roots == ["RUNNING", "FAILURE"]
-    assert r.ticks == {
-        1: [
-            ("p", "IDLE", "RUNNING"),
-            ("a", "IDLE", "RUNNING"),
-            ("b", "IDLE", "RUNNING"),
-            ("c", "IDLE", "RUNNING"),
-        ],
-        2: [
-            ("b", "RUNNING", "FAILURE"),
-            ("a", "RUNNING", "IDLE"),
-            ("b", "FAILURE", "IDLE"),
-            ("c", "RUNNING", "IDLE"),
-            ("p", "RUNNING", "FAILURE"),
-            ("p", "FAILURE", "IDLE"),
         ],
     }
 
