@@ -15,8 +15,8 @@ from btlog.record import Recorder
 from btlog.runner import RunConfig
 from btlog.tree.loader import load_tree_text
 from btlog.tree.model import Node
+from tests.cli_support import assert_bad_input, btlog
 from tests.oracle.runner import have_behaviortreepy, run_oracle
-from tests.test_cli import assert_bad_input, btlog
 
 SMALL = (
     '<root BTCPP_format="4"><BehaviorTree ID="M"><Sequence>'

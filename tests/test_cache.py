@@ -25,6 +25,7 @@ from btlog.replay import cache
 from btlog.replay.database import cache_location, open_runs
 from btlog.schema import schema_text
 from btlog.tree.loader import load_tree_text
+from tests.cli_support import btlog
 
 ROOT = Path(__file__).resolve().parent.parent
 LOOP = """<root BTCPP_format="4"><BehaviorTree ID="MainTree">
@@ -49,18 +50,6 @@ def caches(tmp_path, monkeypatch) -> Path:
     folder = tmp_path / "caches"
     monkeypatch.setenv("BTLOG_CACHE_DIR", str(folder))
     return folder
-
-
-def btlog(*args: str, env: dict | None = None) -> subprocess.CompletedProcess:
-    environment = {**os.environ, "PYTHONPATH": str(ROOT / "src"), "NO_COLOR": "1", **(env or {})}
-    return subprocess.run(
-        [sys.executable, "-m", "btlog.cli.main", *args],
-        env=environment,
-        capture_output=True,
-        text=True,
-        timeout=120,
-        check=False,
-    )
 
 
 def test_caches_live_in_the_cache_folder_never_beside_the_recording(tmp_path, caches):

@@ -26,6 +26,7 @@ from btlog.checks.expectations import (
 )
 from btlog.checks.rerun import rerun, tree_for_rerun
 from btlog.runner import RunConfig, execute
+from tests.cli_support import btlog as cli
 
 ROOT = Path(__file__).resolve().parents[1]
 KITTING = ROOT / "trees" / "kitting.xml"
@@ -57,18 +58,6 @@ GOOD = {
 def _env() -> dict[str, str]:
     paths = [str(ROOT / "src"), os.environ.get("PYTHONPATH", "")]
     return {**os.environ, "PYTHONPATH": os.pathsep.join(p for p in paths if p)}
-
-
-def cli(*args: str, cwd: Path | None = None) -> subprocess.CompletedProcess:
-    """Run the real command line in a subprocess."""
-    return subprocess.run(
-        [sys.executable, "-m", "btlog.cli.main", *map(str, args)],
-        capture_output=True,
-        text=True,
-        env=_env(),
-        cwd=cwd,
-        timeout=120,
-    )
 
 
 @pytest.fixture(scope="module")

@@ -14,6 +14,7 @@ from pathlib import Path
 import pytest
 
 from btlog.record.reader import open_recording
+from tests.cli_support import assert_bad_input, btlog
 from tests.waiting import wait_for_events
 
 ROOT = Path(__file__).resolve().parent.parent
@@ -29,31 +30,6 @@ def recording_copies() -> Iterator[Path]:
     shutil.copytree(ROOT / "recordings", RECORDINGS, dirs_exist_ok=True)
     yield RECORDINGS
     shutil.rmtree(RECORDINGS, ignore_errors=True)
-
-
-def btlog(*args: str, cwd: Path = ROOT, timeout: float = 120) -> subprocess.CompletedProcess:
-    """Run ``btlog ARGS`` and capture its output."""
-    env = {**os.environ, "PYTHONPATH": str(ROOT / "src"), "NO_COLOR": "1"}
-    env.pop("BTLOG_DEBUG", None)
-    return subprocess.run(
-        [sys.executable, "-m", "btlog.cli.main", *args],
-        cwd=cwd,
-        env=env,
-        capture_output=True,
-        text=True,
-        timeout=timeout,
-        check=False,
-    )
-
-
-def assert_bad_input(result: subprocess.CompletedProcess, *words: str) -> None:
-    """Exit 2, one line on stderr mentioning ``words``, no traceback."""
-    assert result.returncode == 2, result.stderr
-    lines = result.stderr.strip().splitlines()
-    assert len(lines) == 1, result.stderr
-    assert "Traceback" not in result.stderr
-    for word in words:
-        assert word in lines[0]
 
 
 def test_run_records_and_answers_live(tmp_path: Path) -> None:

@@ -6,11 +6,8 @@ chunk's length damaged, rows that name nodes the tree does not have, seqs writte
 
 from __future__ import annotations
 
-import os
 import random
 import struct
-import subprocess
-import sys
 from pathlib import Path
 
 import orjson
@@ -27,6 +24,7 @@ from btlog.record.reader import read_metadata
 from btlog.replay.database import ReplayError, open_runs
 from btlog.schema import schema_text
 from btlog.tree.loader import load_tree_text
+from tests.cli_support import btlog
 
 ROOT = Path(__file__).resolve().parent.parent
 LOOP = """<root BTCPP_format="4"><BehaviorTree ID="MainTree">
@@ -79,18 +77,6 @@ def damaged_copy(source: Path, target: Path, offset: int, xor: int = 0x5A) -> Pa
     data[offset] ^= xor
     target.write_bytes(bytes(data))
     return target
-
-
-def btlog(*args: str) -> subprocess.CompletedProcess:
-    env = {**os.environ, "PYTHONPATH": str(ROOT / "src"), "NO_COLOR": "1"}
-    return subprocess.run(
-        [sys.executable, "-m", "btlog.cli.main", *args],
-        env=env,
-        capture_output=True,
-        text=True,
-        timeout=120,
-        check=False,
-    )
 
 
 def test_a_damaged_chunk_is_skipped_with_file_and_offset_and_the_rest_is_read(recording, tmp_path):

@@ -4,9 +4,6 @@ overrides and C1 controls, and a crafted recording whose names hold escape seque
 
 from __future__ import annotations
 
-import os
-import subprocess
-import sys
 import uuid
 from pathlib import Path
 
@@ -20,6 +17,7 @@ from btlog.record import Recorder
 from btlog.render.escape import safe
 from btlog.runner import RunConfig
 from btlog.tree.loader import load_tree
+from tests.cli_support import btlog
 
 ROOT = Path(__file__).resolve().parent.parent
 FAILING = "n\nFAKE: OK"
@@ -40,21 +38,6 @@ TREE = """<root BTCPP_format="4" main_tree_to_execute="Main">
 """
 #: What a crafted recording may hold that XML cannot: colour, window title, clear screen.
 ESCAPES = "\x1b[31mred\x1b]0;pwned\x07\x1b[2J"
-
-
-def btlog(*args: str, cwd: Path) -> subprocess.CompletedProcess:
-    """``btlog ARGS`` with its output captured as text."""
-    env = {**os.environ, "PYTHONPATH": str(ROOT / "src"), "NO_COLOR": "1"}
-    env.pop("BTLOG_DEBUG", None)
-    return subprocess.run(
-        [sys.executable, "-m", "btlog.cli.main", *args],
-        cwd=cwd,
-        env=env,
-        capture_output=True,
-        text=True,
-        timeout=120,
-        check=False,
-    )
 
 
 def assert_clean(text: str) -> None:

@@ -15,16 +15,11 @@ from btlog.fleet.lake import LAKE_TABLES, export_runs, open_lake
 from btlog.fleet.report import duckdb_report
 from btlog.replay.database import open_runs
 from btlog.runner import RunConfig, execute
+from tests.cli_support import btlog
 
 ROOT = Path(__file__).resolve().parent.parent
 KITTING = str(ROOT / "trees" / "kitting.xml")
 TAXI = str(ROOT / "trees" / "taxi.xml")
-
-
-def btlog(*args: str) -> subprocess.CompletedProcess:
-    return subprocess.run(
-        [sys.executable, "-m", "btlog.cli.main", *args], capture_output=True, text=True
-    )
 
 
 @pytest.fixture(scope="module")

@@ -26,9 +26,9 @@ from btlog.state import StateProjection
 from btlog.tree.loader import load_tree_text
 from btlog.tree.model import CONDITION
 from btlog.tree.registry import NodeType, Registry
+from tests.cli_support import btlog as cli
 from tests.oracle.random_trees import generate
 from tests.oracle.runner import have_behaviortreepy, run_oracle, tick_boundaries
-from tests.test_cli import btlog as cli
 from tests.test_differential import btlog_transitions
 
 CASES = int(os.environ.get("BTLOG_IMPORT_CASES", "30"))

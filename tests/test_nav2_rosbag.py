@@ -24,8 +24,8 @@ from btlog.runner import RunConfig, execute
 from btlog.sinks.nav2_rosbag import LOG_MSGDEF, export_nav2
 from btlog.sources.nav2_rosbag import import_bag
 from btlog.status import RUNNING
+from tests.cli_support import ROOT, assert_bad_input, btlog
 from tests.oracle.random_trees import generate
-from tests.test_cli import ROOT, assert_bad_input, btlog
 
 NAV2 = ROOT / "trees" / "nav2"
 TREE = NAV2 / "navigate_to_pose.xml"

@@ -22,7 +22,7 @@ from btlog.state import StateProjection
 from btlog.status import FAILURE, SUCCESS
 from btlog.tree.loader import load_tree
 from btlog.tree.model import Node
-from tests.test_cli import btlog
+from tests.cli_support import btlog
 
 ROOT = Path(__file__).resolve().parent.parent
 OURS = ROOT / "trees" / "nav2"

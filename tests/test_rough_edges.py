@@ -9,24 +9,10 @@ from pathlib import Path
 
 import pytest
 
+from tests.cli_support import btlog
+
 ROOT = Path(__file__).resolve().parent.parent
 KITTING = str(ROOT / "trees" / "kitting.xml")
-
-
-def btlog(*args: str, cwd: Path, env: dict | None = None) -> subprocess.CompletedProcess:
-    """The installed command, in a subprocess."""
-    environment = {**os.environ, "NO_COLOR": "1", **(env or {})}
-    if "BTLOG_DEBUG" not in (env or {}):
-        environment.pop("BTLOG_DEBUG", None)
-    return subprocess.run(
-        [sys.executable, "-m", "btlog.cli.main", *args],
-        cwd=cwd,
-        env=environment,
-        capture_output=True,
-        text=True,
-        timeout=120,
-        check=False,
-    )
 
 
 @pytest.fixture(scope="module")

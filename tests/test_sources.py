@@ -21,8 +21,8 @@ from btlog.sources.btcpp_tree import tree_from_log_xml
 from btlog.sources.builder import RecordingBuilder, Source
 from btlog.status import FAILURE, IDLE, RUNNING, SUCCESS
 from btlog.tree.loader import TreeError, load_nodes_model, load_tree_text
+from tests.cli_support import ROOT, assert_bad_input, btlog
 from tests.oracle.random_trees import generate
-from tests.test_cli import ROOT, assert_bad_input, btlog
 
 KITTING_RUN = ROOT / "recordings" / "kitting-look-at-chuck-fails.mcap"
 

@@ -2,9 +2,6 @@
 
 from __future__ import annotations
 
-import os
-import subprocess
-import sys
 from pathlib import Path
 
 import pytest
@@ -15,6 +12,7 @@ from btlog.record import Recorder
 from btlog.replay import cache
 from btlog.replay.database import ReplayError, open_runs
 from btlog.tree.loader import load_tree_text
+from tests.cli_support import btlog
 
 ROOT = Path(__file__).resolve().parent.parent
 LOOP = """<root BTCPP_format="4"><BehaviorTree ID="MainTree">
@@ -35,18 +33,6 @@ def recording(tmp_path_factory) -> Path:
     executor.run(max_ticks=60)
     executor.close()
     return path
-
-
-def btlog(*args: str) -> subprocess.CompletedProcess:
-    env = {**os.environ, "PYTHONPATH": str(ROOT / "src"), "NO_COLOR": "1"}
-    return subprocess.run(
-        [sys.executable, "-m", "btlog.cli.main", *args],
-        env=env,
-        capture_output=True,
-        text=True,
-        timeout=120,
-        check=False,
-    )
 
 
 @pytest.mark.parametrize(

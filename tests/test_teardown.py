@@ -10,9 +10,6 @@ state after the teardown, and equal the answers right after the last real tick.
 
 from __future__ import annotations
 
-import os
-import subprocess
-import sys
 from pathlib import Path
 
 import pytest
@@ -20,25 +17,12 @@ import pytest
 from btlog.explain.questions import explain
 from btlog.replay.database import open_runs
 from btlog.runner import RunConfig, execute
+from tests.cli_support import btlog
 
 ROOT = Path(__file__).resolve().parent.parent
 MEMORY_TREE = """<root BTCPP_format="4"><BehaviorTree ID="Main">
 <SequenceWithMemory name="assemble"><Action ID="fetch" name="fetch"/>
 <Action ID="mount" name="mount"/></SequenceWithMemory></BehaviorTree></root>"""
-
-
-def btlog(*args: str, cwd: Path) -> subprocess.CompletedProcess:
-    """The installed command, in a subprocess."""
-    env = {**os.environ, "NO_COLOR": "1"}
-    return subprocess.run(
-        [sys.executable, "-m", "btlog.cli.main", *args],
-        cwd=cwd,
-        env=env,
-        capture_output=True,
-        text=True,
-        timeout=120,
-        check=False,
-    )
 
 
 def test_teardown_is_the_recordings_last_tick(tmp_path: Path) -> None:

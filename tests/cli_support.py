@@ -1,0 +1,47 @@
+"""The real ``btlog`` command line in a subprocess, for the tests that run it."""
+
+from __future__ import annotations
+
+import os
+import subprocess
+import sys
+from pathlib import Path
+
+ROOT = Path(__file__).resolve().parent.parent
+
+
+def btlog(
+    *args: str | os.PathLike,
+    cwd: str | os.PathLike | None = ROOT,
+    env: dict[str, str] | None = None,
+    timeout: float = 120,
+) -> subprocess.CompletedProcess:
+    """Run ``btlog ARGS`` (this checkout's source) and capture its output as text; colour is
+    off and ``BTLOG_DEBUG`` unset unless ``env`` (added to the environment) sets it."""
+    paths = [str(ROOT / "src"), os.environ.get("PYTHONPATH", "")]
+    environment = {
+        **os.environ,
+        "PYTHONPATH": os.pathsep.join(p for p in paths if p),
+        "NO_COLOR": "1",
+    }
+    environment.pop("BTLOG_DEBUG", None)
+    environment.update(env or {})
+    return subprocess.run(
+        [sys.executable, "-m", "btlog.cli.main", *map(str, args)],
+        cwd=cwd,
+        env=environment,
+        capture_output=True,
+        text=True,
+        timeout=timeout,
+        check=False,
+    )
+
+
+def assert_bad_input(result: subprocess.CompletedProcess, *words: str) -> None:
+    """Exit 2, one line on stderr mentioning ``words``, no traceback."""
+    assert result.returncode == 2, result.stderr
+    lines = result.stderr.strip().splitlines()
+    assert len(lines) == 1, result.stderr
+    assert "Traceback" not in result.stderr
+    for word in words:
+        assert word in lines[0]
