@@ -15,7 +15,7 @@ from hypothesis import given
 from hypothesis import strategies as st
 
 from btlog.replay.database import open_runs
-from btlog.replay.snapshots import load_snapshot
+from btlog.replay.snapshots import EventBatch, load_snapshot, snapshot_rows
 from btlog.state import State
 from tests.test_replay import DEFAULT, KITTING, PROPERTY, canonical, record, scripts_for
 
@@ -60,3 +60,29 @@ def test_sql_snapshots_hold_retry_attempts_and_failures(tmp_path: Path) -> None:
     found = assert_snapshots_equal_the_fold(path, live.states, 1)
     assert any(state["retry_attempts"] for state in found)
     assert any(state["last_failure"] for state in found)
+
+
+def test_event_blocks_hold_status_changes_in_seq_order_whatever_the_row_order(
+    tmp_path: Path,
+) -> None:
+    """A snapshot's block of events is cut from ``transitions`` in seq order, also when
+    the table's rows are not stored in that order."""
+    path = tmp_path / "run.mcap"
+    record(path, KITTING, {"default": DEFAULT}, max_ticks=20)
+    with open_runs(path, cache=False, snapshot_every=8) as database:
+        run = database.run()
+        con, params = database.con, {"run_id": run.stored_id}
+        con.execute("USE run0")
+        stored = snapshot_rows(con, run.stored_id, run.tree, run.info.events, 8)
+        con.execute("CREATE TABLE shuffled AS FROM transitions ORDER BY seq DESC")
+        con.execute("DELETE FROM transitions WHERE run_id = $run_id", params)
+        con.execute("INSERT INTO transitions FROM shuffled")
+        reversed_rows = snapshot_rows(con, run.stored_id, run.tree, run.info.events, 8)
+        con.execute("USE memory")
+    blocks = [EventBatch.from_block(b, []) for b in stored["events"].to_pylist()]
+    assert [b.seq for b in blocks] == [
+        EventBatch.from_block(b, []).seq for b in reversed_rows["events"].to_pylist()
+    ]
+    seqs = [seq for block in blocks for seq in block.seq]
+    assert seqs == sorted(seqs) and len(seqs) > 16
+    assert all(seq // 8 == i for i, block in enumerate(blocks) for seq in block.seq)

@@ -1,14 +1,16 @@
 """Snapshots: the state every K events, so that any moment costs one row and a short fold.
 
 ``build_snapshots`` stores, every ``snapshot_every`` events, the state before that event,
-computed as SQL over the tables (``SNAPSHOTS_SQL``): each transition holds until the next
-one of its node (``lead(seq)``) and is repeated over the snapshot boundaries it spans
-(``unnest(range(...))``); blackboard entries the same by (scope, key). Only the retry
-counts, which depend on the tree's shape, are folded by ``StateProjection`` — over the
-few events that change them. The projection stays the definition of the state: a
-property test keeps the SQL snapshots equal to its fold. The state at any moment is one
-snapshot row plus a fold of the at most ``snapshot_every`` events after it, read from
-the tables (``fetch_events``; ``btlog.replay.database``).
+computed as SQL over the tables (``SNAPSHOTS_SQL``): a node's status (activation, last
+failure) at a boundary is that of its latest transition in the blocks before it (one
+aggregation per block, carried forward over the boundaries); blackboard entries hold
+until the next write of their (scope, key) (``lead(seq)``, repeated over the boundaries
+they span). Only the retry counts, which depend on the tree's shape, are folded by
+``StateProjection`` — over the few events that change them. The projection stays the
+definition of the state: a property test keeps the SQL snapshots equal to its fold.
+Each row also holds its block of events (status changes as fixed-width columns), so the
+state at any moment is one snapshot row plus a fold of at most ``snapshot_every``
+events (``btlog.replay.database``).
 """
 
 from __future__ import annotations
@@ -22,6 +24,7 @@ from typing import Any, cast
 import duckdb
 import orjson
 import pyarrow as pa
+import pyarrow.compute as pa_compute
 import zstandard
 
 from btlog.events import BlackboardWrite, TreeMutation
@@ -229,14 +232,19 @@ def _event_blocks(
     """The ``events`` of each snapshot row (``writes``: each block's write rows as a
     JSON list), zstd-compressed: the count of status changes (8 bytes), the status
     changes as fixed-width columns (``_BLOCK_COLUMNS``, native byte order), then the
-    writes. The columns are cut from one sorted Arrow read of ``transitions``, so
-    nothing is done per row in Python."""
+    writes. The columns are cut from one Arrow read of ``transitions`` (in seq order,
+    as the rows are stored, or sorted), so nothing is done per row in Python."""
     columns = ", ".join(f"{sql} AS {name}" for name, sql, _code in _BLOCK_COLUMNS)
     params = {"run_id": run_id, "k": every}
     rows = con.sql(
-        f"SELECT {columns} FROM transitions WHERE run_id = $run_id ORDER BY seq",
-        params={"run_id": run_id},
+        f"SELECT {columns} FROM transitions WHERE run_id = $run_id", params={"run_id": run_id}
     ).to_arrow_table()
+    seqs = rows["seq"]
+    if (
+        len(seqs) > 1
+        and not pa_compute.all(pa_compute.less(seqs.slice(0, len(seqs) - 1), seqs.slice(1))).as_py()
+    ):
+        rows = rows.sort_by("seq")  # rows are stored in seq order unless a file was not
     counts = dict(
         con.execute(
             "SELECT seq // $k, count(*) FROM transitions WHERE run_id = $run_id GROUP BY ALL",
@@ -262,27 +270,35 @@ def _event_blocks(
     return blocks
 
 
-def _spans(name: str, where: str, partition: str, columns: str) -> str:
-    """A CTE ``name``: each row of ``transitions`` matching ``where``, repeated for every
-    snapshot boundary ``b`` (a multiple of $k, at most $n) it is the latest row of its
-    ``partition`` before: from the first boundary after it up to its successor's seq."""
-    return f"""{name} AS (
-        SELECT unnest(range(seq // $k + 1, coalesce(nxt, $n) // $k + 1)) * $k AS b, {columns}
-        FROM (SELECT *, lead(seq) OVER (PARTITION BY {partition} ORDER BY seq) AS nxt
-              FROM transitions WHERE run_id = $run_id AND {where})
-        WHERE coalesce(nxt, $n) // $k > seq // $k)"""
+def _latest(name: str, where: str, partition: str, value: str) -> str:
+    """CTEs ``name_in`` and ``name``: for each snapshot boundary ``b`` (a multiple of $k,
+    at most $n) and each ``partition`` value, ``value`` of the latest row of
+    ``transitions`` matching ``where`` before ``b``. The latest row of each block of $k
+    seqs is found by one aggregation, then carried forward over the boundaries, so the
+    millions of rows are grouped once and only blocks x keys rows are windowed."""
+    return f"""{name}_in AS (
+        SELECT (seq // $k + 1) * $k AS b, {partition} AS p, arg_max({value}, seq) AS v
+        FROM transitions WHERE run_id = $run_id AND {where} GROUP BY ALL),
+    {name} AS (
+        SELECT * FROM (
+            SELECT bounds.b, keys.p AS {partition},
+                last_value(i.v IGNORE NULLS) OVER (PARTITION BY keys.p ORDER BY bounds.b
+                    ROWS BETWEEN UNBOUNDED PRECEDING AND CURRENT ROW) AS v
+            FROM bounds CROSS JOIN (SELECT DISTINCT p FROM {name}_in) keys
+            LEFT JOIN {name}_in i ON i.b = bounds.b AND i.p = keys.p)
+        WHERE v IS NOT NULL)"""
 
 
 #: The snapshot rows: the state before each boundary ``b`` as ``State.to_json`` writes it
 #: (large blackboard values named by seq in ``blackboard_refs``, see ``snapshot_json``).
 SNAPSHOTS_SQL = (
-    "WITH "
+    "WITH bounds AS (SELECT unnest(range(0, $n // $k + 1)) * $k AS b),\n"
     + ",\n".join(
         (
-            _spans("status_at", "true", "uid", "uid, enum_code(status) AS v"),
-            _spans("activation_at", "prev_status = 'IDLE'", "uid", "uid, seq AS v"),
-            _spans("failure_at", "status = 'FAILURE'", "uid", "uid, seq AS v"),
-            _spans(
+            _latest("status_at", "true", "uid", "enum_code(status)"),
+            _latest("activation_at", "prev_status = 'IDLE'", "uid", "seq"),
+            _latest("failure_at", "status = 'FAILURE'", "uid", "seq"),
+            _latest(
                 "leaf_at", "status <> 'IDLE' AND list_contains($execution, uid)", "run_id", "uid"
             ),
         )
@@ -316,7 +332,6 @@ SNAPSHOTS_SQL = (
         SELECT seq, t_ns, tick FROM transitions WHERE run_id = $run_id
         UNION ALL SELECT seq, t_ns, tick FROM blackboard WHERE run_id = $run_id
         UNION ALL SELECT seq, t_ns, tick FROM _mutations WHERE run_id = $run_id),
-    bounds AS (SELECT unnest(range(0, $n // $k + 1)) * $k AS b),
     write_blocks AS (
         SELECT seq // $k * $k AS b,
             list(json_array(seq, t_ns, tick, scope, key, value, type, writer_uid)
@@ -344,7 +359,7 @@ SNAPSHOTS_SQL = (
             'activation', coalesce(a.value, '{{}}'::JSON),
             'last_failure', coalesce(fl.value, '{{}}'::JSON),
             'retry_attempts', coalesce(r.attempts, '{{}}')::JSON,
-            'last_leaf', leaf.uid,
+            'last_leaf', leaf.v,
             'blackboard', coalesce(bb.blackboard, '{{}}'::JSON),
             'blackboard_refs', rf.refs)::VARCHAR AS state,
         coalesce(wb.block, '[]')::VARCHAR AS write_block
