@@ -298,3 +298,19 @@ def test_spark_job_gives_the_same_report_as_duckdb(lake):
     import json
 
     assert json.loads(done.stdout) == duckdb_report(str(lake)).to_json()
+
+
+def test_export_in_processes_writes_the_same_lake(lake, runs, tmp_path):
+    """--jobs 2: the same report; a bad recording among them is one line, exit 2."""
+    folder = tmp_path / "lake"
+    done = btlog("export", *map(str, runs), "--parquet", str(folder), "--jobs", "2")
+    assert done.returncode == 0, done.stderr
+    assert duckdb_report(str(folder)).to_json() == duckdb_report(str(lake)).to_json()
+    assert len(list(folder.glob("runs/*/*/*.parquet"))) == 2
+    bad = tmp_path / "bad.mcap"
+    bad.write_bytes(b"not a recording")
+    failed = btlog(
+        "export", str(runs[0]), str(bad), "--parquet", str(tmp_path / "l2"), "--jobs", "2"
+    )
+    assert failed.returncode == 2
+    assert failed.stderr.count("\n") == 1 and "bad.mcap" in failed.stderr

@@ -37,8 +37,10 @@ def export_parquet(args: Namespace) -> int:
     """``btlog export RUN... --parquet LAKE``: every run's tables into the lake."""
     from btlog.fleet.lake import check_exportable, export_runs
 
+    if args.jobs < 1:
+        raise ValueError(f"--jobs {args.jobs}: expected 1 or more")
     check_exportable(args.items, args.parquet)
-    done = export_runs(args.items, args.parquet)
+    done = export_runs(args.items, args.parquet, jobs=args.jobs)
     transitions = sum(e.transitions for e in done)
     partitions = len({e.partition for e in done})
     print(

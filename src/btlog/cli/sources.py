@@ -73,6 +73,13 @@ def add_parsers(commands: argparse._SubParsersAction) -> None:
         help="write each run's tables as Parquet under LAKE (LAKE/TABLE/domain=…/date=…/, "
         "one file per table and partition), for 'btlog fleet' and 'sql --lake'",
     )
+    export.add_argument(
+        "--jobs",
+        metavar="N",
+        type=int,
+        default=1,
+        help="with --parquet: export in N processes (default 1)",
+    )
 
 
 def _add_model_and_gap(parser: argparse.ArgumentParser) -> None:

@@ -69,28 +69,71 @@ def export_runs(
     lake: str | os.PathLike,
     on_run: Callable[[Exported], None] | None = None,
     compact: bool = True,
+    jobs: int = 1,
 ) -> list[Exported]:
-    """Export each recording's tables into ``lake`` (see the module docstring), then
-    compact the partitions it wrote to (unless ``compact`` is false: several processes
-    exporting into one lake compact once when all are done).
+    """Export each recording's tables into ``lake`` (see the module docstring), in
+    ``jobs`` processes, then compact the partitions it wrote to (unless ``compact`` is
+    false: several processes exporting into one lake compact once when all are done).
 
     Each recording is read into memory on its own (no cache is written: an export is a
-    one-off pass over many files).
+    one-off pass over many files). The runs exported before an error are compacted too.
     """
     root = Path(lake)
+    paths = [os.fspath(r) for r in recordings]
     done: list[Exported] = []
+    try:
+        if jobs > 1 and len(paths) > 1:
+            _export_in_processes(paths, root, jobs, done, on_run)
+        else:
+            done.extend(_export_serially(paths, str(root), on_run))
+    finally:
+        if compact and done:
+            from btlog.fleet.compact import compact_lake
+
+            compact_lake(root, sorted({e.partition for e in done}))
+    return done
+
+
+def _export_serially(
+    paths: list[str], lake: str, on_run: Callable[[Exported], None] | None = None
+) -> list[Exported]:
+    """Export ``paths`` one after the other in this process (no compaction)."""
+    done = []
     columns: dict[str, list[str]] = {}
-    for recording in recordings:
+    for recording in paths:
         with open_runs(recording, cache=False) as database:
-            exported = _export_run(database.run(), database.con, root, columns)
+            exported = _export_run(database.run(), database.con, Path(lake), columns)
         done.append(exported)
         if on_run is not None:
             on_run(exported)
-    if compact:
-        from btlog.fleet.compact import compact_lake
-
-        compact_lake(root, sorted({e.partition for e in done}))
     return done
+
+
+def _export_in_processes(
+    paths: list[str],
+    root: Path,
+    jobs: int,
+    done: list[Exported],
+    on_run: Callable[[Exported], None] | None,
+) -> None:
+    """Export ``paths`` in ``jobs`` fresh (spawned) processes, a few chunks each so they
+    finish together; append to ``done`` in the recordings' order."""
+    import multiprocessing
+    from concurrent.futures import ProcessPoolExecutor
+
+    size = -(-len(paths) // (jobs * 4))
+    chunks = [paths[i : i + size] for i in range(0, len(paths), size)]
+    context = multiprocessing.get_context("spawn")  # no fork of a process holding DuckDB
+    with ProcessPoolExecutor(min(jobs, len(chunks)), mp_context=context) as pool:
+        try:
+            for chunk in pool.map(_export_serially, chunks, [str(root)] * len(chunks)):
+                for exported in chunk:
+                    done.append(exported)
+                    if on_run is not None:
+                        on_run(exported)
+        except BaseException:
+            pool.shutdown(cancel_futures=True)
+            raise
 
 
 def _export_run(
