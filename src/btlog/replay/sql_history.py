@@ -19,7 +19,7 @@ from btlog.status import Status
 from btlog.tree.model import Tree
 
 if TYPE_CHECKING:
-    from btlog.replay.database import Run
+    from btlog.replay.run import Run
 
 
 #: Runs with at most this many events are queried in memory (see the module docstring).
