@@ -11,7 +11,7 @@ from __future__ import annotations
 
 from btlog.domains.base import Domain
 from btlog.domains.outcomes import Effect, Outcome, ScriptedLeaf
-from btlog.domains.taxi_world import ACTIONS, DROP_OFF, PICK_UP, TaxiWorld, default_world
+from btlog.domains.taxi_mdp import ACTIONS, DROP_OFF, PICK_UP, TaxiWorld, default_world
 from btlog.status import FAILURE, SUCCESS, Status
 from btlog.tree.model import Node
 
