@@ -8,6 +8,8 @@ errors bad input raises.
 
 from __future__ import annotations
 
+import errno
+import io
 import json
 import os
 import random
@@ -17,11 +19,12 @@ import subprocess
 import sys
 import time
 from pathlib import Path
+from typing import Any
 
 import orjson
 import pytest
 from mcap.reader import SeekingReader
-from mcap.writer import Writer
+from mcap.writer import CompressionType, Writer
 
 import btlog
 from btlog.domains.outcomes import Outcomes, scripted_leaf_factory
@@ -39,6 +42,7 @@ from btlog.record import (
     schema_text,
 )
 from btlog.record import format as fmt
+from btlog.record.background import BackgroundWriter
 from btlog.status import IDLE, RUNNING, SUCCESS
 from btlog.tree.loader import load_tree, load_tree_text
 from btlog.tree.registry import Registry
@@ -564,3 +568,43 @@ def test_a_bounded_recorder_is_called_per_event(tmp_path):
     recorder = Recorder(tmp_path / "bounded.mcap", load_tree(KITTING), METADATA, max_tick_events=3)
     assert recorder.status_rows() is None
     recorder.close()
+
+
+class _FailingFile(io.RawIOBase):
+    """A file that takes ``room`` bytes, then fails as a full disk does."""
+
+    def __init__(self, room: int) -> None:
+        self.room = room
+        self.position = 0
+
+    def writable(self) -> bool:
+        return True
+
+    def seekable(self) -> bool:
+        return True
+
+    def seek(self, offset: int, whence: int = 0) -> int:
+        assert (offset, whence) == (0, io.SEEK_CUR)  # tell() only
+        return self.position
+
+    def write(self, data: Any) -> int:
+        if len(data) > self.room:
+            raise OSError(errno.ENOSPC, "No space left on device")
+        self.room -= len(data)
+        self.position += len(data)
+        return len(data)
+
+
+def test_an_error_of_the_writer_thread_reaches_the_run_once(tmp_path):
+    """The MCAP writer runs on the recorder's thread: its error (a full disk) is raised
+    in the run's thread by the next wait (a recorder's flush or close), the calls after it
+    are dropped, and stopping still ends the thread."""
+    writer = BackgroundWriter(Writer(_FailingFile(room=64), compression=CompressionType.NONE))
+    writer.add_message(1, 0, b"x" * 1000, 0)
+    writer.flush()  # the chunk reaches the file, which is full
+    with pytest.raises(OSError, match="No space"):
+        writer.wait()
+    writer.add_message(1, 1, b"y", 1)  # dropped: the writer failed
+    writer.wait()
+    writer.stop()
+    assert not writer.running

@@ -4,15 +4,18 @@ The cost that matters is per event, and an MCAP message costs microseconds while
 list append costs tens of nanoseconds. So the hot path only appends rows: the executor
 appends each status change to the recorder's ``status_rows`` itself (``on_status`` does
 the same for other callers), ``on_write`` builds one tuple, and ``on_tick`` turns the
-tick's rows into one
-``/btlog/events`` message (orjson encodes the rows in one call). Grouping changes nothing
-for a reader: every row keeps its own ``seq``, ``t_ns`` and ``tick``.
+tick's rows into one ``/btlog/events`` message (orjson encodes the rows in one call).
+Grouping changes nothing for a reader: every row keeps its own ``seq``, ``t_ns`` and
+``tick``. The MCAP writer's work — adding messages, compressing and writing chunks — runs
+on the recorder's own thread (``btlog.record.background``), in the order it was asked for.
 
 Crash safety comes from flushing by wall time: a tick flushes (the MCAP writer's chunk is
 closed and flushed to the file) when the *next* tick, expected as far away as the last
 one was, would come after ``flush_interval`` seconds since the last flush. Chunks are the
 unit a reader can recover from a cut file, so after ``kill -9`` at most the last interval
-is lost, also when ticks are paced to the wall clock. Tick records are written together
+is lost, also when ticks are paced to the wall clock (an interval's flush is queued to
+the writer thread; ``flush()`` called by hand returns once the data is in the file). Tick
+records are written together
 with the events they end, in the same chunk, so a cut file never has events far ahead of
 its ticks. ``close()`` writes the rest and the summary (the index that makes the file
 seekable).
@@ -37,6 +40,7 @@ from mcap.writer import CompressionType, Writer
 import btlog
 from btlog.events import Subscriber, TickRecord, TreeMutation
 from btlog.record import format as fmt
+from btlog.record.background import BackgroundWriter
 from btlog.schema import schema_text
 from btlog.status import STATUS_NAMES, Status
 from btlog.tree.model import Tree
@@ -125,8 +129,10 @@ class Recorder(Subscriber):
     metadata, the ``attachments`` — ``(name, bytes)`` of the tree's XML files — and the
     ``/btlog/tree`` message) written and flushed, at construction. Subscribe it to an
     executor; ``close()`` (or the executor's ``close()``, or leaving a ``with`` block)
-    finishes the file. ``event_count`` and ``last_seq`` tell what has been written so far;
-    ``metadata`` is the ``btlog.run`` record as written.
+    finishes the file and ends the recorder's writer thread (an error of the writer, such
+    as a full disk, is raised by the next ``flush()`` or ``close()``). ``event_count`` and
+    ``last_seq`` tell what has been handed to the writer so far; ``metadata`` is the
+    ``btlog.run`` record as written.
 
     A tick's status changes are buffered until the tick ends. ``max_tick_events`` (e.g.
     ``MAX_BUFFERED_EVENTS``) bounds that buffer for trees that may loop many times within
@@ -173,6 +179,8 @@ class Recorder(Subscriber):
             self._file.close()
             raise
         self._events_channel = self._channels[fmt.EVENTS_TOPIC]
+        #: the writer's calls from now on, run on the recorder's thread
+        self._background = BackgroundWriter(self._writer)
         self._last_flush = self._last_tick_at = time.monotonic()
         if type(self).on_status is Recorder.on_status:  # a subclass's override wins
             self.on_status = self._status_appender()  # type: ignore[method-assign,assignment]
@@ -262,7 +270,7 @@ class Recorder(Subscriber):
         self._write_events()
         self._end_chunk_if_full()
         if time.monotonic() - self._last_flush >= self.flush_interval:
-            self.flush()
+            self._flush()
 
     def on_tick(self, record: TickRecord) -> None:
         """Write the buffered events as one message once ``group_events`` have gathered
@@ -285,7 +293,7 @@ class Recorder(Subscriber):
         now = time.monotonic()
         gap, self._last_tick_at = now - self._last_tick_at, now
         if now + gap - self._last_flush >= self.flush_interval:
-            self.flush()
+            self._flush()
 
     # -- the rest ---------------------------------------------------------------------
     def on_mutation(self, mutation: TreeMutation) -> None:
@@ -318,12 +326,18 @@ class Recorder(Subscriber):
         )
 
     def flush(self) -> None:
-        """Write everything buffered and flush it to the file (closes the MCAP chunk)."""
+        """Write everything buffered and flush it to the file (closes the MCAP chunk);
+        returns once it is in the file."""
         if self._closed:
             return
+        self._flush()
+        self._background.wait()
+
+    def _flush(self) -> None:
+        """``flush`` without waiting: the writer thread closes the chunk and writes it."""
         self._write_events()
         self._write_ticks()
-        self._writer.flush()
+        self._background.flush()
         self._chunk_bytes = 0
         self._last_flush = self._last_tick_at = time.monotonic()
 
@@ -338,10 +352,12 @@ class Recorder(Subscriber):
         try:
             self._write_events()
             self._write_ticks()
-            self._writer.finish()
         finally:
-            self._closed = True
-            self._file.close()
+            try:
+                self._background.stop()  # the writer's finish, then the thread ends
+            finally:
+                self._closed = True
+                self._file.close()
 
     @property
     def closed(self) -> bool:
@@ -359,7 +375,7 @@ class Recorder(Subscriber):
         """Close the MCAP chunk (and write it to the file) once it holds ``chunk_size``
         bytes of messages; called only where no tick is half written."""
         if self._chunk_bytes >= self.chunk_size:
-            self._writer.flush()
+            self._background.flush()
             self._chunk_bytes = 0
 
     def _write_events(self, tick: int | None = None) -> None:
@@ -374,7 +390,7 @@ class Recorder(Subscriber):
         data = orjson.dumps(
             {"tick": last[2] if tick is None else tick, "status": status, "writes": writes}
         )
-        self._writer.add_message(
+        self._background.add_message(
             self._events_channel, self.start_ns + last[1], data, time.time_ns()
         )
         self._chunk_bytes += len(data)
@@ -391,5 +407,7 @@ class Recorder(Subscriber):
     def _add(self, topic: str, message: dict, t_ns: int) -> None:
         """Write one message whose log_time is the run's start plus ``t_ns``."""
         data = fmt.dumps(message)
-        self._writer.add_message(self._channels[topic], self.start_ns + t_ns, data, time.time_ns())
+        self._background.add_message(
+            self._channels[topic], self.start_ns + t_ns, data, time.time_ns()
+        )
         self._chunk_bytes += len(data)
