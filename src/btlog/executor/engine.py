@@ -60,7 +60,6 @@ class Executor:
         self.runtime = Runtime(clock or SimClock())
         self.leaf_factory = leaf_factory
         self.subscribers: list[Subscriber] = []
-        self.seq = 0
         self.root_board = Blackboard("")
         self.root_board.on_write = self._on_write
         self._initial_writes: list[tuple[Blackboard, str, Any]] = []
@@ -132,20 +131,22 @@ class Executor:
         (``status_rows``), a single closure appending to its list (no call per event beyond
         the node's own); otherwise a call of every subscriber's ``on_status``."""
         subscribers = tuple(self.subscribers)
-        if not subscribers:
-            self.runtime.emit_status = None
-            return
         runtime = self.runtime
+        runtime.append_row = None
+        if not subscribers:
+            runtime.emit_status = None
+            return
         now = runtime.clock.now_ns
         rows = subscribers[0].status_rows() if len(subscribers) == 1 else None
         if rows is not None:
             runtime.emit_status = self._row_emitter(rows)
+            runtime.append_row = rows.append
             return
         handlers = tuple(_status_handler(s) for s in subscribers)
 
         def emit(uid: int, prev: Status, new: Status) -> None:
-            seq = self.seq
-            self.seq = seq + 1
+            seq = runtime.seq
+            runtime.seq = seq + 1
             t = now()
             for handler in handlers:
                 handler(seq, t, runtime.tick, uid, prev, new)
@@ -154,32 +155,23 @@ class Executor:
 
     def _row_emitter(self, rows: list[tuple]) -> Callable[[int, Status, Status], None]:
         """``emit_status`` appending ``(seq, t_ns, tick, uid, prev name, status name)`` to
-        ``rows``. A plain ``SimClock`` only moves between ticks: its time is read as an
-        attribute, not through a call."""
+        ``rows`` (the clock's time read as ``t_ns``: an attribute of a ``SimClock``)."""
         runtime, clock, names, append = self.runtime, self.runtime.clock, STATUS_NAMES, rows.append
-        if type(clock) is SimClock:
-
-            def emit_simulated(uid: int, prev: Status, new: Status) -> None:
-                seq = self.seq
-                self.seq = seq + 1
-                append((seq, clock.t_ns, runtime.tick, uid, names[prev], names[new]))
-
-            return emit_simulated
-        now = clock.now_ns
 
         def emit(uid: int, prev: Status, new: Status) -> None:
-            seq = self.seq
-            self.seq = seq + 1
-            append((seq, now(), runtime.tick, uid, names[prev], names[new]))
+            seq = runtime.seq
+            runtime.seq = seq + 1
+            append((seq, clock.t_ns, runtime.tick, uid, names[prev], names[new]))
 
         return emit
 
     def _on_write(self, scope: str, key: str, value: Any, writer: int | None) -> None:
         if not self.subscribers:
             return
-        seq = self.seq
-        self.seq = seq + 1
-        t = self.runtime.clock.now_ns()
+        runtime = self.runtime
+        seq = runtime.seq
+        runtime.seq = seq + 1
+        t = runtime.clock.now_ns()
         kind = "unset" if value is UNSET else type_name(value)
         if value is UNSET:
             value = None
@@ -271,6 +263,11 @@ class Executor:
             subscriber.on_close()
 
     # -- inspection --------------------------------------------------------------------
+    @property
+    def seq(self) -> int:
+        """The number of events so far (the next event's seq)."""
+        return self.runtime.seq
+
     def statuses(self) -> dict[int, Status]:
         """Every node's current status by uid."""
         return {uid: b.status for uid, b in self.behaviors.items()}
@@ -303,7 +300,7 @@ class Executor:
         board = parent_behavior.blackboard.board
         behavior = self._build(copy, board)
         parent_behavior.insert_child(index, behavior)
-        self.seq += 1
+        self.runtime.seq += 1
         mutation = TreeMutation(
             seq,
             self.runtime.clock.now_ns(),
