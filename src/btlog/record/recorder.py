@@ -13,9 +13,8 @@ Crash safety comes from flushing by wall time: a tick flushes (the MCAP writer's
 closed and flushed to the file) when the *next* tick, expected as far away as the last
 one was, would come after ``flush_interval`` seconds since the last flush. Chunks are the
 unit a reader can recover from a cut file, so after ``kill -9`` at most the last interval
-is lost, also when ticks are paced to the wall clock (an interval's flush is queued to
-the writer thread; ``flush()`` called by hand returns once the data is in the file). Tick
-records are written together
+is lost, also when ticks are paced to the wall clock (a flush waits for the writer
+thread: the data is in the file when it returns). Tick records are written together
 with the events they end, in the same chunk, so a cut file never has events far ahead of
 its ticks. ``close()`` writes the rest and the summary (the index that makes the file
 seekable).
@@ -270,7 +269,7 @@ class Recorder(Subscriber):
         self._write_events()
         self._end_chunk_if_full()
         if time.monotonic() - self._last_flush >= self.flush_interval:
-            self._flush()
+            self.flush()
 
     def on_tick(self, record: TickRecord) -> None:
         """Write the buffered events as one message once ``group_events`` have gathered
@@ -293,7 +292,7 @@ class Recorder(Subscriber):
         now = time.monotonic()
         gap, self._last_tick_at = now - self._last_tick_at, now
         if now + gap - self._last_flush >= self.flush_interval:
-            self._flush()
+            self.flush()
 
     # -- the rest ---------------------------------------------------------------------
     def on_mutation(self, mutation: TreeMutation) -> None:
@@ -327,17 +326,14 @@ class Recorder(Subscriber):
 
     def flush(self) -> None:
         """Write everything buffered and flush it to the file (closes the MCAP chunk);
-        returns once it is in the file."""
+        returns once it is in the file (the interval's promise; a chunk closed for its
+        size is left to the writer thread)."""
         if self._closed:
             return
-        self._flush()
-        self._background.wait()
-
-    def _flush(self) -> None:
-        """``flush`` without waiting: the writer thread closes the chunk and writes it."""
         self._write_events()
         self._write_ticks()
         self._background.flush()
+        self._background.wait()
         self._chunk_bytes = 0
         self._last_flush = self._last_tick_at = time.monotonic()
 
