@@ -14,35 +14,16 @@ from pathlib import Path
 
 import orjson
 import pytest
-from mcap.well_known import MessageEncoding, SchemaEncoding
-from mcap.writer import CompressionType, Writer
+from mcap.writer import CompressionType
 
-from btlog.domains.outcomes import Outcomes, scripted_leaf_factory
-from btlog.executor.engine import Executor
-from btlog.record import Recorder, iter_messages, read_metadata
 from btlog.record import format as fmt
+from btlog.record import iter_messages
 from btlog.replay import cache
 from btlog.replay.database import cache_location, open_runs
-from btlog.schema import schema_text
-from btlog.tree.loader import load_tree_text
 from tests.cli_support import btlog
+from tests.mcap_support import record_loop, stored_metadata, write_messages
 
 ROOT = Path(__file__).resolve().parent.parent
-LOOP = """<root BTCPP_format="4"><BehaviorTree ID="MainTree">
-  <KeepRunningUntilFailure><Sequence name="work">
-    <Action ID="Look" name="look"/><Action ID="Place" name="place"/>
-  </Sequence></KeepRunningUntilFailure>
-</BehaviorTree></root>"""
-
-
-def record(path: Path, ticks: int = 40) -> Path:
-    tree = load_tree_text(LOOP)
-    outcomes = Outcomes.from_mapping({"default": {"status": "SUCCESS", "ticks": 1}})
-    executor = Executor(tree, leaf_factory=scripted_leaf_factory(tree, outcomes))
-    executor.subscribe(Recorder(path, tree, {"domain": "loop"}))
-    executor.run(max_ticks=ticks)
-    executor.close()
-    return path
 
 
 @pytest.fixture
@@ -55,7 +36,7 @@ def caches(tmp_path, monkeypatch) -> Path:
 def test_caches_live_in_the_cache_folder_never_beside_the_recording(tmp_path, caches):
     folder = tmp_path / "recordings"
     folder.mkdir()
-    path = record(folder / "run.mcap")
+    path = record_loop(folder / "run.mcap")
     with open_runs(path) as database:
         assert len(database.ingested) == 1
     assert sorted(p.name for p in folder.iterdir()) == ["run.mcap"]
@@ -79,32 +60,19 @@ def test_xdg_cache_home_is_the_default(tmp_path, monkeypatch):
 def equal_sized_variant(source: Path, target: Path, status: str) -> Path:
     """``source`` re-written uncompressed with the last transition's status replaced by
     ``status`` (a name of the same length): same size, other content."""
-    metadata = {
-        k: v if isinstance(v, str) else orjson.dumps(v).decode()
-        for k, v in read_metadata(source).items()
-    }
     messages = list(iter_messages(source))
     last = max(i for i, (topic, _t, _d) in enumerate(messages) if topic == fmt.EVENTS_TOPIC)
-    with open(target, "wb") as file:
-        writer = Writer(file, compression=CompressionType.NONE)
-        writer.start()
-        channels = {}
-        for topic, (name, schema) in fmt.TOPICS.items():
-            schema_id = writer.register_schema(name, SchemaEncoding.JSONSchema, schema_text(schema))
-            channels[topic] = writer.register_channel(topic, MessageEncoding.JSON, schema_id)
-        writer.add_metadata(fmt.METADATA_NAME, metadata)
-        for number, (topic, log_time, data) in enumerate(messages):
-            if number == last:
-                message = orjson.loads(data)
-                message["status"][-1][5] = status
-                data = orjson.dumps(message)
-            writer.add_message(channels[topic], log_time, data, log_time)
-        writer.finish()
-    return target
+    topic, log_time, data = messages[last]
+    message = orjson.loads(data)
+    message["status"][-1][5] = status
+    messages[last] = (topic, log_time, orjson.dumps(message))
+    return write_messages(
+        target, stored_metadata(source), messages, compression=CompressionType.NONE
+    )
 
 
 def test_a_replaced_recording_with_the_same_size_and_mtime_is_not_answered_stale(tmp_path, caches):
-    source = record(tmp_path / "source.mcap")
+    source = record_loop(tmp_path / "source.mcap")
     first = equal_sized_variant(source, tmp_path / "first.mcap", "SUCCESS")
     second = equal_sized_variant(source, tmp_path / "second.mcap", "FAILURE")
     assert first.stat().st_size == second.stat().st_size
@@ -122,7 +90,7 @@ def test_a_replaced_recording_with_the_same_size_and_mtime_is_not_answered_stale
 
 
 def test_a_moved_recording_reuses_its_cache_and_is_named_where_it_is(tmp_path, caches):
-    path = record(tmp_path / "run.mcap")
+    path = record_loop(tmp_path / "run.mcap")
     with open_runs(path) as database:
         assert len(database.ingested) == 1
     moved = tmp_path / "elsewhere" / "moved.mcap"
@@ -135,8 +103,8 @@ def test_a_moved_recording_reuses_its_cache_and_is_named_where_it_is(tmp_path, c
 
 
 def test_least_recently_used_caches_are_evicted_beyond_the_cap(tmp_path, caches, monkeypatch):
-    old = record(tmp_path / "old.mcap", ticks=30)
-    new = record(tmp_path / "new.mcap", ticks=31)
+    old = record_loop(tmp_path / "old.mcap", ticks=30)
+    new = record_loop(tmp_path / "new.mcap", ticks=31)
     with open_runs(old):
         pass
     [first] = cache.entries(caches)
@@ -147,7 +115,7 @@ def test_least_recently_used_caches_are_evicted_beyond_the_cap(tmp_path, caches,
 
 
 def test_leftovers_of_killed_builds_are_removed_on_the_next_open(tmp_path, caches):
-    path = record(tmp_path / "run.mcap")
+    path = record_loop(tmp_path / "run.mcap")
     dead = subprocess.run(
         [sys.executable, "-c", "import os; print(os.getpid())"],
         check=True,
@@ -171,7 +139,7 @@ def test_leftovers_of_killed_builds_are_removed_on_the_next_open(tmp_path, cache
 
 
 def test_an_unwritable_cache_folder_falls_back_to_memory_with_a_notice(tmp_path, monkeypatch):
-    path = record(tmp_path / "run.mcap")
+    path = record_loop(tmp_path / "run.mcap")
     blocker = tmp_path / "not-a-folder"
     blocker.write_text("")
     monkeypatch.setenv("BTLOG_CACHE_DIR", str(blocker / "btlog"))
@@ -190,7 +158,7 @@ def test_an_unwritable_cache_folder_falls_back_to_memory_with_a_notice(tmp_path,
 
 def test_cache_command_lists_and_clears(tmp_path):
     folder = tmp_path / "c"
-    path = record(tmp_path / "run.mcap")
+    path = record_loop(tmp_path / "run.mcap")
     assert btlog("sql", str(path), "SELECT 1", "--cache-dir", str(folder)).returncode == 0
     [built] = cache.entries(folder)
     listing = btlog("cache", "--cache-dir", str(folder), "--json")

@@ -12,19 +12,16 @@ from pathlib import Path
 
 import orjson
 import pytest
-from mcap.well_known import MessageEncoding, SchemaEncoding
-from mcap.writer import Writer
 
 from btlog.domains.outcomes import Outcomes, scripted_leaf_factory
 from btlog.events import EventLog
 from btlog.executor.engine import Executor
 from btlog.record import Recorder, RecordingError, iter_messages, open_recording, recover
 from btlog.record import format as fmt
-from btlog.record.reader import read_metadata
 from btlog.replay.database import ReplayError, open_runs
-from btlog.schema import schema_text
 from btlog.tree.loader import load_tree_text
 from tests.cli_support import btlog
+from tests.mcap_support import stored_metadata, write_messages
 
 ROOT = Path(__file__).resolve().parent.parent
 LOOP = """<root BTCPP_format="4"><BehaviorTree ID="MainTree">
@@ -152,24 +149,13 @@ def test_recover_keeps_every_intact_chunk_after_the_damage(recording, tmp_path):
 
 def rewrite(source: Path, target: Path, change) -> Path:
     """``source`` re-written (valid CRCs) with each events message passed through ``change``."""
-    metadata = {
-        k: v if isinstance(v, str) else orjson.dumps(v).decode()
-        for k, v in read_metadata(source).items()
-    }
-    with open(target, "wb") as file:
-        writer = Writer(file)
-        writer.start()
-        channels = {}
-        for topic, (name, schema) in fmt.TOPICS.items():
-            schema_id = writer.register_schema(name, SchemaEncoding.JSONSchema, schema_text(schema))
-            channels[topic] = writer.register_channel(topic, MessageEncoding.JSON, schema_id)
-        writer.add_metadata(fmt.METADATA_NAME, metadata)
-        for topic, log_time, data in iter_messages(source):
-            if topic == fmt.EVENTS_TOPIC:
-                data = orjson.dumps(change(orjson.loads(data)))
-            writer.add_message(channels[topic], log_time, data, log_time)
-        writer.finish()
-    return target
+    messages = (
+        (topic, log_time, orjson.dumps(change(orjson.loads(data))))
+        if topic == fmt.EVENTS_TOPIC
+        else (topic, log_time, data)
+        for topic, log_time, data in iter_messages(source)
+    )
+    return write_messages(target, stored_metadata(source), messages)
 
 
 def test_rows_naming_unknown_nodes_are_refused(recording, tmp_path):

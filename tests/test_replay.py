@@ -23,8 +23,6 @@ import orjson
 import pytest
 from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
-from mcap.well_known import MessageEncoding, SchemaEncoding
-from mcap.writer import Writer
 
 from btlog.domains.outcomes import Outcomes, scripted_leaf_factory
 from btlog.events import EventLog, Subscriber, TickRecord
@@ -35,9 +33,9 @@ from btlog.record.recorder import Recorder
 from btlog.replay.database import ReplayError, open_runs
 from btlog.replay.moments import MomentError, parse_moment
 from btlog.replay.scan import McapScan
-from btlog.schema import schema_text
 from btlog.status import FAILURE, IDLE, RUNNING, SUCCESS
 from btlog.tree.loader import load_tree
+from tests.mcap_support import stored_metadata, write_messages
 
 ROOT = Path(__file__).resolve().parent.parent
 KITTING = ROOT / "trees" / "kitting.xml"
@@ -635,30 +633,12 @@ def test_a_gap_in_the_seqs_is_reported_and_moments_count_seqs(tmp_path):
         assert state.seq == 4 and state.status_of(1) is SUCCESS
 
 
-def write_messages(target: Path, metadata: dict[str, str], messages) -> None:
-    """An MCAP file with btlog's channels holding ``(topic, log_time, bytes)`` messages."""
-    with open(target, "wb") as file:
-        writer = Writer(file)
-        writer.start()
-        channels = {}
-        for topic, (name, schema) in fmt.TOPICS.items():
-            schema_id = writer.register_schema(name, SchemaEncoding.JSONSchema, schema_text(schema))
-            channels[topic] = writer.register_channel(topic, MessageEncoding.JSON, schema_id)
-        writer.add_metadata(fmt.METADATA_NAME, metadata)
-        for topic, log_time, data in messages:
-            writer.add_message(channels[topic], log_time, data, log_time)
-        writer.finish()
-
-
 def write_spaced_recording(source: Path, target: Path) -> None:
     """``source`` rewritten with every message re-encoded with spaces and reordered keys
     (still valid JSON of the same layout), so that only the general decoding reads it."""
-    from btlog.record.reader import iter_messages, read_metadata
+    from btlog.record.reader import iter_messages
 
-    metadata = {
-        k: v if isinstance(v, str) else orjson.dumps(v).decode()
-        for k, v in read_metadata(source).items()
-    }
+    metadata = stored_metadata(source)
     messages = []
     for topic, log_time, data in iter_messages(source):
         message = orjson.loads(data)
@@ -668,13 +648,10 @@ def write_spaced_recording(source: Path, target: Path) -> None:
 
 
 def test_rows_that_break_the_format_are_a_replay_error(kitting, tmp_path):
-    from btlog.record.reader import iter_messages, read_metadata
+    from btlog.record.reader import iter_messages
 
     path, _live = kitting
-    metadata = {
-        k: v if isinstance(v, str) else orjson.dumps(v).decode()
-        for k, v in read_metadata(path).items()
-    }
+    metadata = stored_metadata(path)
     tree = next(m for m in iter_messages(path) if m[0] == fmt.TREE_TOPIC)
     broken = tmp_path / "broken.mcap"
     write_messages(

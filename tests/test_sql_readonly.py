@@ -6,33 +6,18 @@ from pathlib import Path
 
 import pytest
 
-from btlog.domains.outcomes import Outcomes, scripted_leaf_factory
-from btlog.executor.engine import Executor
-from btlog.record import Recorder
 from btlog.replay import cache
 from btlog.replay.database import ReplayError, open_runs
-from btlog.tree.loader import load_tree_text
 from tests.cli_support import btlog
+from tests.mcap_support import record_loop
 
 ROOT = Path(__file__).resolve().parent.parent
-LOOP = """<root BTCPP_format="4"><BehaviorTree ID="MainTree">
-  <KeepRunningUntilFailure><Sequence name="work">
-    <Action ID="Look" name="look"/><Action ID="Place" name="place"/>
-  </Sequence></KeepRunningUntilFailure>
-</BehaviorTree></root>"""
 COUNT = "SELECT count(*) AS n FROM transitions"
 
 
 @pytest.fixture(scope="module")
 def recording(tmp_path_factory) -> Path:
-    path = tmp_path_factory.mktemp("sql") / "run.mcap"
-    tree = load_tree_text(LOOP)
-    outcomes = Outcomes.from_mapping({"default": {"status": "SUCCESS", "ticks": 1}})
-    executor = Executor(tree, leaf_factory=scripted_leaf_factory(tree, outcomes))
-    executor.subscribe(Recorder(path, tree, {"domain": "loop"}))
-    executor.run(max_ticks=60)
-    executor.close()
-    return path
+    return record_loop(tmp_path_factory.mktemp("sql") / "run.mcap", ticks=60)
 
 
 @pytest.mark.parametrize(
