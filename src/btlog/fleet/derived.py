@@ -16,7 +16,6 @@ import duckdb
 from btlog.explain.causes import cause
 from btlog.history import COMPLETIONS
 from btlog.replay.database import Run
-from btlog.state import State, StateProjection
 from btlog.status import FAILURE
 
 #: Per activation of a node: ``activation`` counts the node's starts out of IDLE in
@@ -63,9 +62,9 @@ def drop_derived(con: duckdb.DuckDBPyConnection) -> None:
 def _causes_table(run: Run, con: duckdb.DuckDBPyConnection) -> int:
     """Create ``_btlog_causes``: every FAILURE of a non-execution node with its causal
     leaf, in event order; return its row count."""
-    # the final shape: the recorded tree with every mutation applied (no snapshot fold,
-    # which ``run.tree_at("end")`` would do for the node statuses the export never uses)
-    tree = StateProjection(run.tree, State(mutations=list(run.mutations))).tree
+    # the final shape, with no snapshot fold (``run.tree_at("end")`` would do one for the
+    # node statuses the export never uses)
+    tree = run.final_tree()
     history = run.history()
     inner = [node.uid for node in tree if not node.is_execution]
     failures = [

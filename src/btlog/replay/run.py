@@ -296,7 +296,7 @@ class Run:
             self._timeline_query(uids is not None, wanted is not None),
             self._timeline_params(lo, hi, uids, wanted),
         ).fetchall()
-        names = {n.uid: n.description for n in self._final_tree()}
+        names = {n.uid: n.description for n in self.final_tree()}
         return [
             TimelineEntry(
                 seq,
@@ -356,13 +356,13 @@ class Run:
             params["status"] = status
         return params
 
-    def _final_tree(self) -> Tree:
-        tree = Tree.from_description(self.tree.describe())
-        projection = StateProjection(tree, State(mutations=list(self.mutations)))
-        return projection.tree
+    def final_tree(self) -> Tree:
+        """The run's tree with every recorded mutation applied (each node knows when it
+        was added); a copy, the recorded tree is left as it is."""
+        return StateProjection(self.tree, State(mutations=list(self.mutations))).tree
 
     def _node_uids(self, node: int | str) -> list[int]:
-        tree = self._final_tree()
+        tree = self.final_tree()
         if isinstance(node, int) or (isinstance(node, str) and node.isdigit()):
             if int(node) in tree.nodes:
                 return [int(node)]

@@ -20,7 +20,7 @@ from btlog.explain.divergence import to_json
 from btlog.explain.hierarchy import current_nodes
 from btlog.explain.questions import _PATTERNS, EXPLAIN_INTENTS, QUESTIONS, answer, explain
 from btlog.replay.database import Run, RunDatabase
-from btlog.state import State, StateProjection
+from btlog.state import State
 from btlog.tree.model import Node, Tree
 
 #: Events listed on each side of the moment.
@@ -60,12 +60,6 @@ def question_patterns() -> list[list[str]]:
     return [[intent, re.sub(r"\(\?P<", "(?<", p.pattern)] for intent, p in _PATTERNS]
 
 
-def final_tree(run: Run) -> Tree:
-    """The run's tree with every recorded mutation applied (each node knows when it was
-    added)."""
-    return StateProjection(run.tree, State(mutations=list(run.mutations))).tree
-
-
 def answers_json(tree: Tree, state: State) -> list[dict[str, Any]]:
     """The standard answers (Q1-Q6) at a state."""
     return [a.to_json() for a in explain(tree, state)]
@@ -78,7 +72,7 @@ class RunView:
         self.database = database
         self.run = run
         self.label = label
-        self.tree = final_tree(run)
+        self.tree = run.final_tree()
         self._writers: dict[tuple[str, str], tuple[list[int], list[int | None]]] | None = None
 
     @property
