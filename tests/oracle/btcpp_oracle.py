@@ -253,7 +253,7 @@ def run_case(
         _handshake(sync_dir, "ran", "quit")
     finally:
         if file_logger:  # let its writer thread drain its queue, then release it
-            time.sleep(0.05)
+            _drain(file_logger[0], file_log or "", len(transitions))
             file_logger.clear()
         collect(capture.restore(), result["teardown_tick"] or result["ticks"])
         _KEEP.extend(keep_alive)
@@ -268,6 +268,34 @@ def _handshake(sync_dir: str | None, done: str, then: str, timeout: float = 60.0
         pass
     deadline = time.monotonic() + timeout
     while not os.path.exists(os.path.join(sync_dir, then)) and time.monotonic() < deadline:
+        time.sleep(0.005)
+
+
+def _records_written(path: str) -> int:
+    """How many 9-byte transition records a FileLogger2 file holds so far."""
+    try:
+        with open(path, "rb") as file:
+            data = file.read()
+    except OSError:
+        return 0
+    head = len(b"BTCPP4-FileLogger2") + 1  # the magic, then a version byte
+    if len(data) < head + 4:
+        return 0
+    body = head + 4 + int.from_bytes(data[head : head + 4], "little") + 8  # XML, start time
+    return max(0, (len(data) - body) // 9)
+
+
+def _drain(logger: Any, path: str, expected: int, timeout: float = 20.0) -> None:
+    """Wait until FileLogger2's writer thread has written ``expected`` transitions.
+
+    Its destructor stops the thread without emptying the queue, so releasing it while
+    transitions wait there (its thread wakes every 10 ms; later under load) loses them.
+    """
+    deadline = time.monotonic() + timeout
+    while time.monotonic() < deadline:
+        logger.flush()
+        if _records_written(path) >= expected:
+            return
         time.sleep(0.005)
 
 
