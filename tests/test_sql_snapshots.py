@@ -14,8 +14,9 @@ from pathlib import Path
 from hypothesis import given
 from hypothesis import strategies as st
 
+from btlog.replay.blocks import EventBatch
 from btlog.replay.database import open_runs
-from btlog.replay.snapshots import EventBatch, load_snapshot, snapshot_rows
+from btlog.replay.snapshots import load_snapshot, snapshot_rows
 from btlog.state import State
 from tests.test_replay import DEFAULT, KITTING, PROPERTY, canonical, record, scripts_for
 

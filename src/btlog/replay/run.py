@@ -26,6 +26,7 @@ from typing import TYPE_CHECKING, Any, NamedTuple
 
 import orjson
 
+from btlog.replay.blocks import EventBatch
 from btlog.replay.moments import (
     BEFORE_END,
     END,
@@ -40,7 +41,7 @@ from btlog.replay.moments import (
     parse_started_at,
     resolve_moment,
 )
-from btlog.replay.snapshots import EventBatch, load_mutations, load_snapshot
+from btlog.replay.snapshots import load_mutations, load_snapshot
 from btlog.replay.sql_history import SqlHistory
 from btlog.replay.tables import only_row
 from btlog.state import State, StateProjection

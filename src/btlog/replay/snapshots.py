@@ -8,30 +8,24 @@ until the next write of their (scope, key) (``lead(seq)``, repeated over the bou
 they span). Only the retry counts, which depend on the tree's shape, are folded by
 ``StateProjection`` — over the few events that change them. The projection stays the
 definition of the state: a property test keeps the SQL snapshots equal to its fold.
-Each row also holds its block of events (status changes as fixed-width columns), so the
-state at any moment is one snapshot row plus a fold of at most ``snapshot_every``
-events (``btlog.replay.database``).
+Each row also holds its block of events (``btlog.replay.blocks``), so the state at any
+moment is one snapshot row plus a fold of at most ``snapshot_every`` events
+(``btlog.replay.run``).
 """
 
 from __future__ import annotations
 
-import struct
-from array import array
-from bisect import bisect_left, bisect_right
-from dataclasses import dataclass, field
-from typing import Any, cast
+from typing import Any
 
 import duckdb
 import orjson
 import pyarrow as pa
-import pyarrow.compute as pa_compute
-import zstandard
 
-from btlog.events import BlackboardWrite, TreeMutation
+from btlog.events import TreeMutation
 from btlog.record import format as fmt
+from btlog.replay.blocks import STATUS_BY_CODE, event_blocks
 from btlog.replay.tables import insert_arrow
 from btlog.state import RECOVERY_TYPE, RETRY_TYPE, StateProjection
-from btlog.status import Status
 from btlog.tree.model import EXECUTION_KINDS, Tree
 
 #: Events between two snapshots. ``state_at`` reads one snapshot row and decodes and
@@ -40,115 +34,10 @@ from btlog.tree.model import EXECUTION_KINDS, Tree
 #: 2.8-3.1 ms at K = 256 and 512, 4.0 at 1024, 4.7 at 2048, 6.3 at 4096, for the same
 #: build time; 512 keeps most of the gain with a quarter of the snapshot rows of 256.
 DEFAULT_SNAPSHOT_EVERY = 512
-#: Events fetched from DuckDB per query while building snapshots.
-FOLD_BATCH = 1 << 18
 #: Blackboard values whose JSON is longer than this are not copied into every snapshot:
 #: a snapshot names the write that set them (its seq), and loading it reads that one row
 #: of ``blackboard``, so a large value is stored and loaded once, not once per snapshot.
 INLINE_VALUE_BYTES = 4096
-_STATUS_BY_CODE = tuple(Status)
-
-
-@dataclass
-class EventBatch:
-    """The events of a seq range: status changes as columns (codes for statuses), the
-    blackboard writes and tree mutations as records (``others``, in seq order)."""
-
-    seq: list[int]
-    t_ns: list[int]
-    tick: list[int]
-    uid: list[int]
-    prev: list[int]
-    status: list[int]
-    writes: list[BlackboardWrite]
-    mutations: list[TreeMutation] = field(default_factory=list)
-    #: seqs of the writes whose value is longer than ``INLINE_VALUE_BYTES`` as JSON
-
-    def __post_init__(self) -> None:
-        writes = cast(list[BlackboardWrite | TreeMutation], self.writes)
-        self.others = sorted([*writes, *self.mutations], key=_seq_of) if self.mutations else writes
-        self._other_seqs = [e.seq for e in self.others]
-
-    def fold(self, projection: StateProjection, lo: int, hi: int) -> None:
-        """Apply this batch's events with ``lo <= seq < hi`` to ``projection``, in order:
-        one pass over the status changes, the other events slotted in by seq."""
-        seqs, other_seqs, others = self.seq, self._other_seqs, self.others
-        i, end = bisect_left(seqs, lo), bisect_left(seqs, hi)
-        k, last = bisect_left(other_seqs, lo), bisect_left(other_seqs, hi)
-        on_status, codes = projection.on_status, _STATUS_BY_CODE
-        pending = other_seqs[k] if k < last else hi
-        for seq, t_ns, tick, uid, prev, status in zip(
-            seqs[i:end],
-            self.t_ns[i:end],
-            self.tick[i:end],
-            self.uid[i:end],
-            self.prev[i:end],
-            self.status[i:end],
-            strict=True,
-        ):
-            while pending < seq:
-                _apply_other(projection, others[k])
-                k += 1
-                pending = other_seqs[k] if k < last else hi
-            on_status(seq, t_ns, tick, uid, codes[prev], codes[status])
-        for event in others[k:last]:
-            _apply_other(projection, event)
-
-    def bound_at_most(self, attribute: str, limit: int) -> int | None:
-        """One past the last seq of the batch whose ``t_ns`` (or ``tick``) is at most
-        ``limit`` (None if no event of the batch is). Both never decrease along seq."""
-        keys = self.t_ns if attribute == "t_ns" else self.tick
-        index = bisect_right(keys, limit)
-        last = self.seq[index - 1] if index else None
-        for event in self.others:
-            if getattr(event, attribute) <= limit and (last is None or event.seq > last):
-                last = event.seq
-        return None if last is None else last + 1
-
-    def keys_of(self, seq: int) -> tuple[int, int] | None:
-        """(t_ns, tick) of event ``seq`` if the batch holds it."""
-        return self.first_keys(seq, seq + 1)
-
-    def first_keys(self, lo: int, hi: int) -> tuple[int, int] | None:
-        """(t_ns, tick) of the first event with ``lo <= seq < hi`` (None if there is none)."""
-        found = None
-        index = bisect_left(self.seq, lo)
-        if index < len(self.seq) and self.seq[index] < hi:
-            found = (self.seq[index], self.t_ns[index], self.tick[index])
-        index = bisect_left(self._other_seqs, lo)
-        if index < len(self._other_seqs) and self._other_seqs[index] < hi:
-            event = self.others[index]
-            if found is None or event.seq < found[0]:
-                found = (event.seq, event.t_ns, event.tick)
-        return None if found is None else found[1:]
-
-    @classmethod
-    def from_block(cls, data: bytes, mutations: list[TreeMutation]) -> EventBatch:
-        """The batch of a snapshot row's ``events`` (see ``build_snapshots``), with the
-        given mutations of its range."""
-        view = memoryview(zstandard.ZstdDecompressor().decompress(data))
-        (count,) = _BLOCK_HEAD.unpack_from(view)
-        at, columns = _BLOCK_HEAD.size, []
-        for _name, _sql, code in _BLOCK_COLUMNS:
-            end = at + count * struct.calcsize(code)
-            values = array(code)
-            values.frombytes(view[at:end])
-            columns.append(values.tolist())
-            at = end
-        writes = [BlackboardWrite(*row) for row in orjson.loads(view[at:])]
-        seq, t_ns, tick, uid, prev, status = columns
-        return cls(seq, t_ns, tick, uid, prev, status, writes, mutations)
-
-
-def _seq_of(event: BlackboardWrite | TreeMutation) -> int:
-    return event.seq
-
-
-def _apply_other(projection: StateProjection, event: BlackboardWrite | TreeMutation) -> None:
-    if isinstance(event, BlackboardWrite):
-        projection.on_write(*event)
-    else:
-        projection.on_mutation(event)
 
 
 def load_mutations(
@@ -209,65 +98,9 @@ def snapshot_rows(
         rows = con.sql(SNAPSHOTS_SQL.format(retry_view=view), params=params).to_arrow_table()
     finally:
         con.unregister(view)
-    blocks = _event_blocks(con, run_id, every, rows["write_block"].to_pylist())
+    blocks = event_blocks(con, run_id, every, rows["write_block"].to_pylist())
     table = rows.drop_columns(["write_block"])
     return table.append_column("events", pa.array(blocks, pa.binary()))
-
-
-#: A block's status changes: these columns of ``transitions``, fixed-width, in this order.
-_BLOCK_COLUMNS = (
-    ("seq", "seq", "q"),
-    ("t_ns", "t_ns", "q"),
-    ("tick", "tick", "q"),
-    ("uid", "uid::INTEGER", "i"),
-    ("prev", "enum_code(prev_status)::UTINYINT", "B"),
-    ("status", "enum_code(status)::UTINYINT", "B"),
-)
-_BLOCK_HEAD = struct.Struct("<Q")
-
-
-def _event_blocks(
-    con: duckdb.DuckDBPyConnection, run_id: str, every: int, writes: list[str]
-) -> list[bytes]:
-    """The ``events`` of each snapshot row (``writes``: each block's write rows as a
-    JSON list), zstd-compressed: the count of status changes (8 bytes), the status
-    changes as fixed-width columns (``_BLOCK_COLUMNS``, native byte order), then the
-    writes. The columns are cut from one Arrow read of ``transitions`` (in seq order,
-    as the rows are stored, or sorted), so nothing is done per row in Python."""
-    columns = ", ".join(f"{sql} AS {name}" for name, sql, _code in _BLOCK_COLUMNS)
-    params = {"run_id": run_id, "k": every}
-    rows = con.sql(
-        f"SELECT {columns} FROM transitions WHERE run_id = $run_id", params={"run_id": run_id}
-    ).to_arrow_table()
-    seqs = rows["seq"]
-    if (
-        len(seqs) > 1
-        and not pa_compute.all(pa_compute.less(seqs.slice(0, len(seqs) - 1), seqs.slice(1))).as_py()
-    ):
-        rows = rows.sort_by("seq")  # rows are stored in seq order unless a file was not
-    counts = dict(
-        con.execute(
-            "SELECT seq // $k, count(*) FROM transitions WHERE run_id = $run_id GROUP BY ALL",
-            params,
-        ).fetchall()
-    )
-    buffers = []
-    for name, _sql, _code in _BLOCK_COLUMNS:
-        array = rows[name].combine_chunks()
-        width = array.type.bit_width // 8
-        values = array.buffers()[1] if len(array) else None
-        view = memoryview(b"") if values is None else memoryview(values)
-        buffers.append((view[array.offset * width :], width))
-    compress = zstandard.ZstdCompressor(level=1).compress
-    blocks, lo = [], 0
-    for index, written in enumerate(writes):
-        hi = lo + counts.get(index, 0)
-        parts: list[bytes | memoryview] = [_BLOCK_HEAD.pack(hi - lo)]
-        parts.extend(buffer[lo * width : hi * width] for buffer, width in buffers)
-        parts.append(written.encode())
-        blocks.append(compress(b"".join(parts)))
-        lo = hi
-    return blocks
 
 
 def _latest(name: str, where: str, partition: str, value: str) -> str:
@@ -399,7 +232,7 @@ def _retry_attempts(
         ORDER BY seq""",
         {"run_id": run_id, "retries": counted[0], "children": counted[1]},
     ).fetchall()
-    projection, codes = StateProjection(tree), _STATUS_BY_CODE
+    projection, codes = StateProjection(tree), STATUS_BY_CODE
     attempts = projection.state.retry_attempts
     pending = iter(mutations)
     mutation = next(pending, None)
