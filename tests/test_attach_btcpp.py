@@ -97,6 +97,12 @@ class _Polled(AttachHooks):
         self.event.set()
 
 
+def _raise_if_publisher_fell_silent(stderr: str) -> None:
+    """``_OracleDied`` when ``btlog attach`` reported BT.CPP's publisher falling silent."""
+    if "stopped answering" in stderr:
+        raise _OracleDied(f"BT.CPP's Groot2 publisher stopped answering: {stderr.strip()}")
+
+
 def _attach_to_btcpp(
     folder: Path, payload: dict[str, Any], options: AttachOptions
 ) -> tuple[AttachResult, dict[str, Any], Path]:
@@ -180,7 +186,13 @@ def test_attach_cli_answers_live_and_records_blackboard_changes(tmp_path: Path) 
             oracle = pool.submit(run_oracle, payload, 60)
             try:
                 _wait_for(sync / "ready", oracle)
-                proc = subprocess.Popen(command, env=ATTACH_ENV, stdout=subprocess.PIPE, text=True)
+                proc = subprocess.Popen(
+                    command,
+                    env=ATTACH_ENV,
+                    stdout=subprocess.PIPE,
+                    stderr=subprocess.PIPE,
+                    text=True,
+                )
                 assert proc.stdout is not None
                 assert proc.stdout.readline().startswith("attached to")
                 (sync / "go").touch()
@@ -195,7 +207,8 @@ def test_attach_cli_answers_live_and_records_blackboard_changes(tmp_path: Path) 
                 (sync / "quit").touch()
             assert proc is not None
             proc.send_signal(signal.SIGINT)  # Ctrl-C finishes the file cleanly
-            rest = proc.communicate(timeout=20)[0]
+            rest, errors = proc.communicate(timeout=20)
+            _raise_if_publisher_fell_silent(errors)
             if oracle.result(timeout=30) is None:
                 raise _OracleDied("BT.CPP's process ended without a result")
         assert proc.returncode == 0
@@ -250,11 +263,17 @@ def test_attach_killed_leaves_a_readable_prefix(tmp_path: Path) -> None:
             oracle = pool.submit(run_oracle, payload, 60)
             try:
                 _wait_for(sync / "ready", oracle)
-                proc = subprocess.Popen(command, env=ATTACH_ENV, stdout=subprocess.PIPE)
+                proc = subprocess.Popen(
+                    command, env=ATTACH_ENV, stdout=subprocess.PIPE, stderr=subprocess.PIPE
+                )
                 assert proc.stdout is not None
                 assert proc.stdout.readline().startswith(b"attached to")
                 (sync / "go").touch()
                 time.sleep(1.6)  # past one flush interval
+                if proc.poll() is not None:  # it finished the file itself: why?
+                    errors = proc.communicate(timeout=10)[1].decode()
+                    _raise_if_publisher_fell_silent(errors)
+                    pytest.fail(f"btlog attach ended before it was killed: {errors}")
                 proc.kill()
                 proc.wait(timeout=10)
             finally:
