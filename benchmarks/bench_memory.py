@@ -56,7 +56,7 @@ def btlog(*args: str, env: dict[str, str]) -> tuple[float, int]:
 
 
 def measure(folder: Path, value_mib: float, ticks: int, env: dict[str, str]) -> dict:
-    """Record one run and measure two ``btlog sql`` on it."""
+    """Record one run; measure two ``btlog sql`` on it, then the first ``btlog ask``."""
     tree = folder / f"tree-{value_mib}.xml"
     tree.write_text(tree_xml(value_mib))
     outcomes = folder / "outcomes.yaml"
@@ -67,14 +67,18 @@ def measure(folder: Path, value_mib: float, ticks: int, env: dict[str, str]) -> 
     query = "SELECT count(*) FROM transitions"
     first, first_rss = btlog("sql", str(recording), query, env=env)
     second, second_rss = btlog("sql", str(recording), query, env=env)
-    caches = list(Path(env["BTLOG_CACHE_DIR"]).glob("*.duckdb"))
-    newest = max(caches, key=lambda p: p.stat().st_mtime_ns)
+    # the first state asked for builds the snapshots (a file beside the cache)
+    ask, ask_rss = btlog("ask", str(recording), "--at", "end", "What are you doing?", env=env)
+    cache_dir = Path(env["BTLOG_CACHE_DIR"])
+    snapshots = max(cache_dir.glob("*.snapshots.duckdb"), key=lambda p: p.stat().st_mtime_ns)
+    newest = snapshots.with_name(snapshots.name.replace(".snapshots.duckdb", ".duckdb"))
     import duckdb
 
     with duckdb.connect(str(newest), read_only=True) as con:
-        events, state_bytes = con.execute(
-            "SELECT (SELECT events FROM _ingest), (SELECT sum(strlen(state::VARCHAR)) "
-            "FROM _snapshots)"
+        (events,) = con.execute("SELECT events FROM _ingest").fetchone()
+    with duckdb.connect(str(snapshots), read_only=True) as con:
+        (state_bytes,) = con.execute(
+            "SELECT sum(strlen(state::VARCHAR)) FROM _snapshots"
         ).fetchone()
     return {
         "events": events,
@@ -82,7 +86,8 @@ def measure(folder: Path, value_mib: float, ticks: int, env: dict[str, str]) -> 
         "run": (run_seconds, run_rss),
         "first": (first, first_rss),
         "second": (second, second_rss),
-        "cache_bytes": newest.stat().st_size,
+        "ask": (ask, ask_rss),
+        "cache_bytes": newest.stat().st_size + snapshots.stat().st_size,
         "state_bytes": state_bytes,
     }
 
@@ -91,9 +96,14 @@ def report(label: str, figures: dict) -> None:
     """Print one run's figures."""
     events = figures["events"]
     print(f"{label}: {events:,} events, recording {figures['file_mb']:.1f} MB")
-    for key in ("run", "first", "second"):
+    name = {
+        "run": "btlog run",
+        "first": "first btlog sql",
+        "second": "second btlog sql",
+        "ask": "first btlog ask",
+    }
+    for key in name:
         seconds, rss = figures[key]
-        name = {"run": "btlog run", "first": "first btlog sql", "second": "second btlog sql"}
         print(f"  {name[key]:<18} {seconds:6.1f} s   peak RSS {rss / 1e6:8.0f} MB")
     print(
         f"  cache {figures['cache_bytes'] / 1e6:.1f} MB = "
