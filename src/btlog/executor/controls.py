@@ -40,20 +40,27 @@ class _InOrder(ControlBehavior):
             self.skipped = 0
         self.set_status(RUNNING)
         children, decisive, may_wake_up = self.children, self.decisive, self.may_wake_up
-        while self.index < len(children):
-            child = children[self.index]
+        # the index is a local while the children tick (the hot path), stored back before
+        # returning or calling what reads it; children change only between ticks
+        index, count = self.index, len(children)
+        while index < count:
+            child = children[index]
             before = child.status
             result = child.execute_tick()
             if result is RUNNING:
+                self.index = index
                 return RUNNING
             if result is decisive:
+                self.index = index
                 self._decided()
                 return result
-            self.index += 1
+            index += 1
             if result is SKIPPED:
                 self.skipped += 1
-            elif may_wake_up and self._wakes_up(before):
-                return RUNNING
+            elif may_wake_up:
+                self.index = index
+                if self._wakes_up(before):
+                    return RUNNING
         return self._finish()
 
     def _decided(self) -> None:
