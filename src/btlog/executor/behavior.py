@@ -118,6 +118,10 @@ class Behavior:
         self._port_cache: dict[str, tuple[str | None, str]] = {}
         has_conditions = any(a in node.attributes for a in _CONDITION_ATTRIBUTES)
         self._conditions = _Conditions(node.attributes) if has_conditions else None
+        if has_conditions:
+            # the scripts run around the node's own tick, so ``execute_tick`` checks nothing
+            # for the nodes that have none (the hot path)
+            self.tick = self._tick_with_conditions  # type: ignore[method-assign]
 
     # -- status ------------------------------------------------------------------------
     def set_status(self, new: Status) -> None:
@@ -140,9 +144,8 @@ class Behavior:
 
     # -- ticking -----------------------------------------------------------------------
     def execute_tick(self) -> Status:
-        """Tick this node as BT.CPP's ``TreeNode::executeTick`` does."""
-        if self._conditions is not None:
-            return self._execute_with_conditions(self._conditions)
+        """Tick this node as BT.CPP's ``TreeNode::executeTick`` does (the pre- and
+        post-conditions, if any, run in ``tick``: see ``_tick_with_conditions``)."""
         new = self.tick()
         prev = self.status
         if new is not prev and new is not SKIPPED:  # set_status, inlined: the hot path
@@ -157,18 +160,21 @@ class Behavior:
                 runtime.emit_status(self.uid, prev, new)
         return new
 
-    def _execute_with_conditions(self, conditions: _Conditions) -> Status:
+    def _tick_with_conditions(self) -> Status:
+        """The node's ``tick`` when it has conditions: the pre-conditions (which may decide
+        the result instead of the node's own tick), then, on completion, ``_onSuccess`` or
+        ``_onFailure`` and ``_post``; ``execute_tick`` stores the result."""
+        conditions = self._conditions
+        assert conditions is not None
         new = self._check_preconditions(conditions)
         if new is None:
-            new = self.tick()
+            new = type(self).tick(self)
         if new is SUCCESS or new is FAILURE:
             script = conditions.on_success if new is SUCCESS else conditions.on_failure
             if script is not None:
                 self._run_script(script)
             if conditions.post is not None:
                 self._run_script(conditions.post)
-        if new is not SKIPPED:
-            self.set_status(new)
         return new
 
     def _check_preconditions(self, conditions: _Conditions) -> Status | None:

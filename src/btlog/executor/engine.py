@@ -32,6 +32,9 @@ from btlog.tree.model import SUBTREE, Node, Tree, blackboard_key
 from btlog.tree.ports import parse_literal
 from btlog.tree.registry import Registry
 
+#: ``TickRecord`` from a tuple, a third faster than its ``__new__`` (once a tick)
+_tick_record = TickRecord._make
+
 BUILTIN_BEHAVIORS: dict[str, type[Behavior]] = {
     **CONTROLS,
     **DECORATORS,
@@ -190,12 +193,13 @@ class Executor:
 
     def tick(self) -> Status:
         """One tick of the root (BT.CPP's tickOnce); returns the root's status."""
-        self.begin()
-        runtime = self.runtime
-        runtime.tick += 1
-        runtime.clock.start_tick(runtime.tick)
-        start = runtime.clock.now_ns()
-        root = self.root
+        if not self.started:
+            self.begin()
+        runtime, root = self.runtime, self.root
+        clock = runtime.clock
+        tick = runtime.tick = runtime.tick + 1
+        clock.start_tick(tick)
+        start = clock.t_ns  # the clock read as the nodes' hot path reads it (no call)
         status = root.execute_tick()
         while status is RUNNING and runtime.wake_up:
             runtime.wake_up = False
@@ -203,9 +207,10 @@ class Executor:
         if status is SUCCESS or status is FAILURE:
             root.reset_status()
         self.last_status = status
-        if self.subscribers:
-            record = TickRecord(runtime.tick, start, runtime.clock.now_ns(), status)
-            for subscriber in self.subscribers:
+        subscribers = self.subscribers
+        if subscribers:
+            record = _tick_record((tick, start, clock.t_ns, status, False))
+            for subscriber in subscribers:
                 subscriber.on_tick(record)
         return status
 
