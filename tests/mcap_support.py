@@ -14,7 +14,7 @@ from btlog.domains.outcomes import Outcomes, scripted_leaf_factory
 from btlog.executor.engine import Executor
 from btlog.record import Recorder
 from btlog.record import format as fmt
-from btlog.record.reader import read_metadata
+from btlog.record.reader import iter_messages, read_metadata
 from btlog.schema import schema_text
 from btlog.tree.loader import load_tree_text
 
@@ -52,16 +52,50 @@ def write_messages(
     messages: Iterable[Message],
     compression: CompressionType = CompressionType.ZSTD,
 ) -> Path:
-    """An MCAP file with btlog's channels holding ``(topic, log_time, bytes)`` messages."""
+    """An MCAP file with btlog's channels holding ``(topic, log_time, bytes)`` messages;
+    the events and ticks channels are JSON ones when ``metadata`` says schema version 2
+    (or 1), binary columns otherwise, as btlog writes them."""
+    json_rows = metadata.get("schema_version") in ("1", "2")
     with open(target, "wb") as file:
         writer = Writer(file, compression=compression)
         writer.start()
         channels = {}
-        for topic, (name, schema) in fmt.TOPICS.items():
-            schema_id = writer.register_schema(name, SchemaEncoding.JSONSchema, schema_text(schema))
-            channels[topic] = writer.register_channel(topic, MessageEncoding.JSON, schema_id)
+        for topic, (name, schema, encoding) in fmt.TOPICS.items():
+            if json_rows and topic in fmt.JSON_SCHEMAS:
+                schema, encoding = fmt.JSON_SCHEMAS[topic], MessageEncoding.JSON
+            schema_encoding = (
+                SchemaEncoding.JSONSchema if encoding == MessageEncoding.JSON else encoding
+            )
+            schema_id = writer.register_schema(name, schema_encoding, schema_text(schema))
+            channels[topic] = writer.register_channel(topic, encoding, schema_id)
         writer.add_metadata(fmt.METADATA_NAME, metadata)
         for topic, log_time, data in messages:
             writer.add_message(channels[topic], log_time, data, log_time)
         writer.finish()
     return target
+
+
+def version_2_payload(topic: str, data: bytes) -> bytes:
+    """An events or ticks message (of any version) as schema version 2 wrote it: JSON
+    rows with status names; any other message as it is."""
+    if topic == fmt.EVENTS_TOPIC:
+        events = fmt.parse_events(data)
+        rows = [[*row[:4], row[4].name, row[5].name] for row in events.status]
+        return orjson.dumps({"tick": events.tick, "status": rows, "writes": events.writes})
+    if topic == fmt.TICKS_TOPIC:
+        ticks = fmt.decode_ticks(data)
+        body: dict = {"ticks": [[t.tick, t.start_ns, t.end_ns, t.root_status.name] for t in ticks]}
+        if any(t.teardown for t in ticks):
+            body["teardown"] = True
+        return orjson.dumps(body)
+    return data
+
+
+def rewrite_as_version_2(source: Path, target: Path) -> Path:
+    """``source`` as btlog wrote recordings before schema version 3 (JSON rows)."""
+    metadata = stored_metadata(source) | {"schema_version": "2"}
+    messages = (
+        (topic, log_time, version_2_payload(topic, data))
+        for topic, log_time, data in iter_messages(source)
+    )
+    return write_messages(target, metadata, messages)

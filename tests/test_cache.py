@@ -10,6 +10,7 @@ import os
 import shutil
 import subprocess
 import sys
+from dataclasses import replace
 from pathlib import Path
 
 import orjson
@@ -20,6 +21,7 @@ from btlog.record import format as fmt
 from btlog.record import iter_messages
 from btlog.replay import cache
 from btlog.replay.database import cache_location, open_runs
+from btlog.status import Status
 from tests.cli_support import btlog
 from tests.mcap_support import record_loop, stored_metadata, write_messages
 
@@ -63,9 +65,10 @@ def equal_sized_variant(source: Path, target: Path, status: str) -> Path:
     messages = list(iter_messages(source))
     last = max(i for i, (topic, _t, _d) in enumerate(messages) if topic == fmt.EVENTS_TOPIC)
     topic, log_time, data = messages[last]
-    message = orjson.loads(data)
-    message["status"][-1][5] = status
-    messages[last] = (topic, log_time, orjson.dumps(message))
+    events = fmt.parse_events(data)
+    *rows, row = events.status
+    rows.append((*row[:5], Status[status]))
+    messages[last] = (topic, log_time, fmt.encode_events(replace(events, status=rows)))
     return write_messages(
         target, stored_metadata(source), messages, compression=CompressionType.NONE
     )

@@ -8,9 +8,9 @@ from __future__ import annotations
 
 import random
 import struct
+from dataclasses import replace
 from pathlib import Path
 
-import orjson
 import pytest
 
 from btlog.domains.outcomes import Outcomes, scripted_leaf_factory
@@ -148,11 +148,16 @@ def test_recover_keeps_every_intact_chunk_after_the_damage(recording, tmp_path):
 
 
 def rewrite(source: Path, target: Path, change) -> Path:
-    """``source`` re-written (valid CRCs) with each events message passed through ``change``."""
+    """``source`` re-written (valid CRCs) with each events message's status rows passed
+    through ``change`` (a list of row lists in, the same out)."""
+
+    def changed(data: bytes) -> bytes:
+        events = fmt.parse_events(data)
+        rows = change([list(row) for row in events.status])
+        return fmt.encode_events(replace(events, status=[tuple(row) for row in rows]))
+
     messages = (
-        (topic, log_time, orjson.dumps(change(orjson.loads(data))))
-        if topic == fmt.EVENTS_TOPIC
-        else (topic, log_time, data)
+        (topic, log_time, changed(data)) if topic == fmt.EVENTS_TOPIC else (topic, log_time, data)
         for topic, log_time, data in iter_messages(source)
     )
     return write_messages(target, stored_metadata(source), messages)
@@ -161,11 +166,11 @@ def rewrite(source: Path, target: Path, change) -> Path:
 def test_rows_naming_unknown_nodes_are_refused(recording, tmp_path):
     path, _log = recording
 
-    def stray(message: dict) -> dict:
-        for row in message["status"]:
+    def stray(rows: list[list]) -> list[list]:
+        for row in rows:
             if row[0] == 40:
                 row[3] = 999
-        return message
+        return rows
 
     crafted = rewrite(path, tmp_path / "stray.mcap", stray)
     with pytest.raises(ReplayError, match=r"stray\.mcap: event seq 40 is about node uid 999"):
@@ -175,11 +180,11 @@ def test_rows_naming_unknown_nodes_are_refused(recording, tmp_path):
 def test_seqs_written_twice_are_refused(recording, tmp_path):
     path, _log = recording
 
-    def twice(message: dict) -> dict:
-        for row in message["status"]:
+    def twice(rows: list[list]) -> list[list]:
+        for row in rows:
             if row[0] == 41:
                 row[0] = 40
-        return message
+        return rows
 
     crafted = rewrite(path, tmp_path / "twice.mcap", twice)
     with pytest.raises(ReplayError, match=r"twice\.mcap: two events have seq 40"):

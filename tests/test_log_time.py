@@ -9,7 +9,6 @@ from __future__ import annotations
 from datetime import datetime
 from pathlib import Path
 
-import orjson
 import pytest
 from mcap.reader import make_reader
 
@@ -34,15 +33,15 @@ def kitting(tmp_path_factory: pytest.TempPathFactory) -> Path:
 
 def test_log_time_is_start_plus_the_events_time(kitting: Path) -> None:
     metadata = read_metadata(kitting)
-    assert metadata["schema_version"] == btlog.SCHEMA_VERSION == "2"
+    assert metadata["schema_version"] == btlog.SCHEMA_VERSION == "3"
     start = datetime.fromisoformat(metadata["started_at"])
     start_ns = int(start.timestamp() * 1_000_000) * 1000
     spans = []
     with kitting.open("rb") as file:
         for _schema, channel, message in make_reader(file).iter_messages(log_time_order=False):
             if channel.topic == fmt.EVENTS_TOPIC:
-                rows = orjson.loads(message.data)
-                last = max(rows["status"] + rows["writes"], key=lambda row: row[0])
+                events = fmt.parse_events(message.data)
+                last = max([*events.status, *events.writes], key=lambda row: row[0])
                 assert message.log_time == start_ns + last[1]
                 spans.append(message.log_time)
             elif channel.topic == fmt.TREE_TOPIC:

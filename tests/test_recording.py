@@ -35,6 +35,7 @@ from btlog.executor.engine import Executor
 from btlog.record import (
     Recorder,
     RecordingError,
+    columns,
     iter_messages,
     open_recording,
     read_metadata,
@@ -43,9 +44,10 @@ from btlog.record import (
 )
 from btlog.record import format as fmt
 from btlog.record.background import BackgroundWriter
-from btlog.status import IDLE, RUNNING, SUCCESS
+from btlog.status import IDLE, RUNNING, SUCCESS, Status
 from btlog.tree.loader import load_tree, load_tree_text
 from btlog.tree.registry import Registry
+from tests.mcap_support import version_2_payload
 
 KITTING = Path(__file__).resolve().parent.parent / "trees" / "kitting.xml"
 
@@ -154,7 +156,7 @@ def test_iter_messages_streams_every_message_in_file_order(kitting_file):
         row[0]
         for topic, _, data in messages
         if topic == fmt.EVENTS_TOPIC
-        for row in orjson.loads(data)["status"]
+        for row in fmt.parse_events(data).status
     ]
     assert events == [e.seq for e in log.events]
     assert not stream.truncated
@@ -186,7 +188,7 @@ def test_a_huge_tick_is_written_in_parts(tmp_path):
 
     def sizes(path: Path) -> list[int]:
         return [
-            len(orjson.loads(d)["status"])
+            len(fmt.parse_events(d).status)
             for topic, _, d in iter_messages(path)
             if topic == fmt.EVENTS_TOPIC
         ]
@@ -388,15 +390,39 @@ def test_values_that_are_not_json_are_recorded_as_repr(tmp_path):
 
 
 # -- schemas -----------------------------------------------------------------------------------
-def schema_for(topic: str) -> dict:
-    return json.loads(schema_text(fmt.TOPICS[topic][1]))
+def schema_for(topic: str, version: str = btlog.SCHEMA_VERSION) -> dict:
+    """The JSON Schema of ``topic``'s messages (events and ticks: as version 2 wrote them)."""
+    name = fmt.JSON_SCHEMAS[topic] if topic in fmt.JSON_SCHEMAS else fmt.TOPICS[topic][1]
+    return json.loads(schema_text(name))
 
 
 def messages_by_topic(path: Path) -> dict[str, list[dict]]:
+    """Every message of ``path`` as JSON; events and ticks as version 2 wrote them."""
     found: dict[str, list[dict]] = {}
     for topic, _, data in iter_messages(path):
-        found.setdefault(topic, []).append(orjson.loads(data))
+        found.setdefault(topic, []).append(orjson.loads(version_2_payload(topic, data)))
     return found
+
+
+def test_events_and_ticks_are_binary_columns_on_channels_that_say_so(tmp_path):
+    path = tmp_path / "columns.mcap"
+    record_kitting(path, mutate_at=5)
+    with path.open("rb") as file:
+        summary = SeekingReader(file).get_summary()
+    assert summary is not None
+    channels = {c.topic: c for c in summary.channels.values()}
+    for topic in (fmt.EVENTS_TOPIC, fmt.TICKS_TOPIC):
+        channel = channels[topic]
+        schema = summary.schemas[channel.schema_id]
+        assert channel.message_encoding == schema.encoding == columns.ENCODING
+        assert schema.data == schema_text("columns.md")
+        assert schema.name == fmt.TOPICS[topic][0]
+    assert {channels[t].message_encoding for t in fmt.TOPICS} == {"json", columns.ENCODING}
+    for topic, _, data in iter_messages(path):
+        if topic in (fmt.EVENTS_TOPIC, fmt.TICKS_TOPIC):
+            magic = columns.EVENTS_MAGIC if topic == fmt.EVENTS_TOPIC else columns.TICKS_MAGIC
+            located = columns.locate(data, 0, len(data))  # the length checks out
+            assert located.magic == magic and data[:4] == magic
 
 
 def test_messages_have_exactly_the_fields_of_their_schemas(tmp_path):
@@ -508,19 +534,20 @@ def test_a_gap_in_the_seqs_is_reported(tmp_path):
     assert recording.warnings == [f"{path}: the events' seqs are not 0, 1, 2, … without gaps"]
 
 
-def test_status_rows_use_status_names(kitting_file):
+def test_status_changes_are_rows_of_the_columns(kitting_file):
     path, log = kitting_file
-    first = next(orjson.loads(d) for t, _, d in iter_messages(path) if t == fmt.EVENTS_TOPIC)
+    first = next(fmt.parse_events(d) for t, _, d in iter_messages(path) if t == fmt.EVENTS_TOPIC)
     event = log.events[0]
     assert isinstance(event, StatusChange)
-    assert first["status"][0] == [
+    assert first.status[0] == (
         event.seq,
         event.t_ns,
         event.tick,
         event.uid,
-        event.prev.name,
-        event.status.name,
-    ]
+        event.prev,
+        event.status,
+    )
+    assert type(first.status[0][4]) is Status
 
 
 SMALL_TREE = (
@@ -543,7 +570,7 @@ def test_a_recorder_alone_records_what_the_executor_emits(tmp_path, clock):
     recorded, logged = executor(), executor()
     recorder = Recorder(tmp_path / "alone.mcap", recorded.tree, METADATA)
     recorded.subscribe(recorder)
-    assert recorder.status_rows() is not None
+    assert recorder.status_buffer() is not None
     log = EventLog()
     logged.subscribe(log)
     for _ in range(7):
@@ -566,7 +593,7 @@ def test_a_bounded_recorder_is_called_per_event(tmp_path):
     """With ``max_tick_events`` the recorder must see each event (to write long ticks in
     parts), so it offers no row buffer to the executor."""
     recorder = Recorder(tmp_path / "bounded.mcap", load_tree(KITTING), METADATA, max_tick_events=3)
-    assert recorder.status_rows() is None
+    assert recorder.status_buffer() is None
     recorder.close()
 
 

@@ -28,14 +28,21 @@ from btlog.domains.outcomes import Outcomes, scripted_leaf_factory
 from btlog.events import EventLog, Subscriber, TickRecord
 from btlog.executor.engine import Executor
 from btlog.explain.questions import answer
+from btlog.record import columns
 from btlog.record import format as fmt
+from btlog.record.reader import RecordingError, iter_messages, open_recording, read_metadata
 from btlog.record.recorder import Recorder
 from btlog.replay.database import ReplayError, open_runs
 from btlog.replay.moments import MomentError, parse_moment
 from btlog.replay.scan import McapScan
 from btlog.status import FAILURE, IDLE, RUNNING, SUCCESS
 from btlog.tree.loader import load_tree
-from tests.mcap_support import stored_metadata, write_messages
+from tests.mcap_support import (
+    rewrite_as_version_2,
+    stored_metadata,
+    version_2_payload,
+    write_messages,
+)
 
 ROOT = Path(__file__).resolve().parent.parent
 KITTING = ROOT / "trees" / "kitting.xml"
@@ -638,10 +645,10 @@ def write_spaced_recording(source: Path, target: Path) -> None:
     (still valid JSON of the same layout), so that only the general decoding reads it."""
     from btlog.record.reader import iter_messages
 
-    metadata = stored_metadata(source)
+    metadata = stored_metadata(source) | {"schema_version": "2"}
     messages = []
     for topic, log_time, data in iter_messages(source):
-        message = orjson.loads(data)
+        message = orjson.loads(version_2_payload(topic, data))
         spaced = {k: message[k] for k in reversed(list(message))}
         messages.append((topic, log_time, json.dumps(spaced).encode()))
     write_messages(target, metadata, messages)
@@ -656,11 +663,34 @@ def test_rows_that_break_the_format_are_a_replay_error(kitting, tmp_path):
     broken = tmp_path / "broken.mcap"
     write_messages(
         broken,
-        metadata,
+        metadata | {"schema_version": "2"},
         [tree, (fmt.EVENTS_TOPIC, 1, b'{"tick":1,"status":[[0,0,1]],"writes":[]}')],
     )
     with pytest.raises(ReplayError, match=r"broken\.mcap.*do not follow the btlog format"):
         open_runs(broken, cache=False)
+
+
+@pytest.mark.parametrize(
+    ("payload", "problem"),
+    [
+        (columns.pack_events(1, [0, 0, 1, 1, 0, 1], [])[:-1], "expected 54"),
+        (columns.pack_events(1, [0, 0, 1, 1, 0, 7], []), "status code 7, not a status"),
+        (b"BTzz" + bytes(20), "JSONDecodeError"),  # neither a binary head nor JSON
+        (b"BTev", "shorter than its head"),
+    ],
+)
+def test_binary_messages_that_break_the_layout_are_a_replay_error(
+    kitting, tmp_path, payload, problem
+):
+    path, _live = kitting
+    tree = next(m for m in iter_messages(path) if m[0] == fmt.TREE_TOPIC)
+    broken = write_messages(
+        tmp_path / "broken.mcap", stored_metadata(path), [tree, (fmt.EVENTS_TOPIC, 1, payload)]
+    )
+    with pytest.raises(ReplayError, match=rf"broken\.mcap: .*{problem}"):
+        open_runs(broken, cache=False)
+    with pytest.raises(RecordingError, match=r"broken\.mcap: a message does not follow"):
+        open_recording(broken)
 
 
 def test_unusual_payloads_are_decoded_by_the_general_path(kitting, tmp_path):
@@ -729,3 +759,20 @@ def test_timeline_filters_by_node_status_and_moments(kitting, tmp_path):
             run.timeline(node="no such node")
         with pytest.raises(ReplayError, match="unknown status"):
             run.timeline(status="sleeping")
+
+
+def test_a_version_2_recording_reads_as_its_version_3_original(kitting, tmp_path):
+    """Recordings written before the binary columns (JSON rows) read the same."""
+    path, live = kitting
+    old = rewrite_as_version_2(path, tmp_path / "v2.mcap")
+    assert read_metadata(old)["schema_version"] == "2"
+    assert read_metadata(path)["schema_version"] == "3"
+    new_recording, old_recording = open_recording(path), open_recording(old)
+    assert old_recording.events == new_recording.events == live.log.events
+    assert old_recording.ticks == new_recording.ticks
+    assert McapScan(str(old), lambda batch: None).run().other_ticks  # the teardown, as JSON
+    query = "SELECT * EXCLUDE (run_id) FROM {} ORDER BY ALL"
+    with open_runs(path, cache=False) as new, open_runs(old, cache=False) as older:
+        assert_replay_equals_live(older.run(), live)
+        for table in ("transitions", "blackboard", "ticks"):
+            assert older.sql(query.format(table)) == new.sql(query.format(table))

@@ -7,8 +7,10 @@ rebuilt and explained with the algorithms of Han et al. (THRI 2020).
 """
 
 __version__ = "0.1.0"
-#: "2": each message's MCAP log_time is the run's start plus its events' ``t_ns`` (the
-#: run's own clock); "1" wrote the wall time of writing. Both read the same.
-SCHEMA_VERSION = "2"
+#: "3": status changes and tick records are binary columns (``btlog.record.columns``);
+#: "2" wrote them as JSON rows; "2" and "3" set each message's MCAP log_time to the run's
+#: start plus its events' ``t_ns`` (the run's own clock), "1" to the wall time of
+#: writing. All three read the same.
+SCHEMA_VERSION = "3"
 #: Every schema version this btlog reads.
-READABLE_SCHEMA_VERSIONS = ("1", "2")
+READABLE_SCHEMA_VERSIONS = ("1", "2", "3")

@@ -88,11 +88,12 @@ class Subscriber:
     ) -> None:
         """A status change."""
 
-    def status_rows(self) -> list[tuple] | None:
-        """A list to which the executor may append each status change as the row
-        ``(seq, t_ns, tick, uid, prev name, status name)`` instead of calling
-        ``on_status`` (one call less per event for a subscriber that only buffers rows,
-        such as the recorder); None, the default, means ``on_status`` is called."""
+    def status_buffer(self) -> list | None:
+        """A list the executor may extend with each status change's six fields ``seq,
+        t_ns, tick, uid, prev, status`` (flat, one change after the other; statuses as
+        ``Status``) instead of calling ``on_status``: one call less per event for a
+        subscriber that only buffers them, such as the recorder. None, the default,
+        means ``on_status`` is called."""
         return None
 
     def on_write(

@@ -16,7 +16,7 @@ from __future__ import annotations
 from collections.abc import Callable
 from typing import TYPE_CHECKING, Any, ClassVar
 
-from btlog.status import FAILURE, IDLE, RUNNING, SKIPPED, STATUS_NAMES, SUCCESS, Status
+from btlog.status import FAILURE, IDLE, RUNNING, SKIPPED, SUCCESS, Status
 from btlog.tree.model import Node, blackboard_key
 from btlog.tree.ports import PortValueError, convert
 from btlog.tree.script import ScriptError, compile_script, truthy
@@ -30,9 +30,10 @@ class Runtime:
     """What every behaviour of one executor shares: the clock, the event feed, the tick.
 
     ``seq`` numbers the run's events. ``emit_status`` reports a status change (None when
-    nobody listens); ``append_row``, set only when a single subscriber buffers rows
-    (``Subscriber.status_rows``), is that buffer's ``append``: the nodes' hottest paths
-    append the row themselves, one call less per event than ``emit_status``.
+    nobody listens); ``append_row``, set only when a single subscriber buffers status
+    changes (``Subscriber.status_buffer``), is that buffer's ``extend``: the nodes'
+    hottest paths add the change's fields themselves, one call less per event than
+    ``emit_status``.
     """
 
     __slots__ = ("append_row", "clock", "emit_status", "seq", "tick", "wake_up")
@@ -44,10 +45,6 @@ class Runtime:
         self.wake_up = False
         self.emit_status: Callable[[int, Status, Status], None] | None = None
         self.append_row: Callable[[tuple], None] | None = None
-
-
-_NAMES = STATUS_NAMES
-_IDLE = STATUS_NAMES[IDLE]
 
 
 class NodeExecutionError(RuntimeError):
@@ -155,7 +152,7 @@ class Behavior:
             if append is not None:  # the row emit_status would append, without the call
                 seq = runtime.seq
                 runtime.seq = seq + 1
-                append((seq, runtime.clock.t_ns, runtime.tick, self.uid, _NAMES[prev], _NAMES[new]))
+                append((seq, runtime.clock.t_ns, runtime.tick, self.uid, prev, new))
             elif runtime.emit_status is not None:
                 runtime.emit_status(self.uid, prev, new)
         return new
@@ -249,7 +246,7 @@ class Behavior:
                 if append is not None:
                     seq = runtime.seq
                     runtime.seq = seq + 1
-                    append((seq, runtime.clock.t_ns, runtime.tick, child.uid, _NAMES[prev], _IDLE))
+                    append((seq, runtime.clock.t_ns, runtime.tick, child.uid, prev, IDLE))
                 elif emit is not None:
                     emit(child.uid, prev, IDLE)
 

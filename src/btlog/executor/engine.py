@@ -27,7 +27,7 @@ from btlog.executor.controls import CONTROLS
 from btlog.executor.decorators import DECORATORS
 from btlog.executor.nav2_controls import NAV2_CONTROLS
 from btlog.executor.nav2_decorators import NAV2_DECORATORS
-from btlog.status import FAILURE, IDLE, RUNNING, STATUS_NAMES, SUCCESS, Status
+from btlog.status import FAILURE, IDLE, RUNNING, SUCCESS, Status
 from btlog.tree.model import SUBTREE, Node, Tree, blackboard_key
 from btlog.tree.ports import parse_literal
 from btlog.tree.registry import Registry
@@ -130,9 +130,10 @@ class Executor:
         self._wire()
 
     def _wire(self) -> None:
-        """Build the ``emit_status`` the nodes call: with one subscriber that buffers rows
-        (``status_rows``), a single closure appending to its list (no call per event beyond
-        the node's own); otherwise a call of every subscriber's ``on_status``."""
+        """Build the ``emit_status`` the nodes call: with one subscriber that buffers status
+        changes (``status_buffer``), a single closure extending its list (no call per
+        event beyond the node's own); otherwise a call of every subscriber's
+        ``on_status``."""
         subscribers = tuple(self.subscribers)
         runtime = self.runtime
         runtime.append_row = None
@@ -140,10 +141,10 @@ class Executor:
             runtime.emit_status = None
             return
         now = runtime.clock.now_ns
-        rows = subscribers[0].status_rows() if len(subscribers) == 1 else None
-        if rows is not None:
-            runtime.emit_status = self._row_emitter(rows)
-            runtime.append_row = rows.append
+        buffer = subscribers[0].status_buffer() if len(subscribers) == 1 else None
+        if buffer is not None:
+            runtime.emit_status = self._row_emitter(buffer)
+            runtime.append_row = buffer.extend
             return
         handlers = tuple(_status_handler(s) for s in subscribers)
 
@@ -156,15 +157,15 @@ class Executor:
 
         runtime.emit_status = emit
 
-    def _row_emitter(self, rows: list[tuple]) -> Callable[[int, Status, Status], None]:
-        """``emit_status`` appending ``(seq, t_ns, tick, uid, prev name, status name)`` to
-        ``rows`` (the clock's time read as ``t_ns``: an attribute of a ``SimClock``)."""
-        runtime, clock, names, append = self.runtime, self.runtime.clock, STATUS_NAMES, rows.append
+    def _row_emitter(self, buffer: list) -> Callable[[int, Status, Status], None]:
+        """``emit_status`` extending ``buffer`` with ``seq, t_ns, tick, uid, prev, status``
+        (the clock's time read as ``t_ns``: an attribute of a ``SimClock``)."""
+        runtime, clock, extend = self.runtime, self.runtime.clock, buffer.extend
 
         def emit(uid: int, prev: Status, new: Status) -> None:
             seq = runtime.seq
             runtime.seq = seq + 1
-            append((seq, clock.t_ns, runtime.tick, uid, names[prev], names[new]))
+            extend((seq, clock.t_ns, runtime.tick, uid, prev, new))
 
         return emit
 
@@ -322,14 +323,14 @@ class Executor:
 
 
 def _status_handler(subscriber: Subscriber) -> Callable[[int, int, int, int, Status, Status], None]:
-    """What receives ``subscriber``'s status changes: its ``on_status``, or an append of
-    the row to its ``status_rows`` list."""
-    rows = subscriber.status_rows()
-    if rows is None:
+    """What receives ``subscriber``'s status changes: its ``on_status``, or an extension of
+    its ``status_buffer``."""
+    buffer = subscriber.status_buffer()
+    if buffer is None:
         return subscriber.on_status
-    append, names = rows.append, STATUS_NAMES
+    extend = buffer.extend
 
     def handler(seq: int, t_ns: int, tick: int, uid: int, prev: Status, new: Status) -> None:
-        append((seq, t_ns, tick, uid, names[prev], names[new]))
+        extend((seq, t_ns, tick, uid, prev, new))
 
     return handler

@@ -56,6 +56,28 @@ class BackgroundWriter:
         """Queue ``Writer.add_message``."""
         self._calls.put((self._writer.add_message, (channel_id, log_time, data, publish_time)))
 
+    def add_encoded(
+        self,
+        channel_id: int,
+        log_time: int,
+        encode: Callable[..., bytes],
+        args: tuple,
+        publish_time: int,
+    ) -> None:
+        """Queue ``Writer.add_message`` of the message ``encode(*args)``, encoded on the
+        writer's thread (``args`` must not change afterwards: pass copies)."""
+        self._calls.put((self._add_encoded, (channel_id, log_time, encode, args, publish_time)))
+
+    def _add_encoded(
+        self,
+        channel_id: int,
+        log_time: int,
+        encode: Callable[..., bytes],
+        args: tuple,
+        publish_time: int,
+    ) -> None:
+        self._writer.add_message(channel_id, log_time, encode(*args), publish_time)
+
     def flush(self) -> None:
         """Queue ``Writer.flush`` (the chunk in progress is compressed and written)."""
         self._calls.put((self._writer.flush, ()))

@@ -189,9 +189,9 @@ class _Contents:
 
     def _message(self, topic: str, message: Message) -> None:
         if topic == fmt.EVENTS_TOPIC:
-            self.events.extend(fmt.decode_events(orjson.loads(message.data)))
+            self.events.extend(fmt.decode_events(message.data))
         elif topic == fmt.TICKS_TOPIC:
-            self.ticks.extend(fmt.decode_ticks(orjson.loads(message.data)))
+            self.ticks.extend(fmt.decode_ticks(message.data))
         elif topic == fmt.MUTATIONS_TOPIC:
             self.events.append(fmt.decode_mutation(orjson.loads(message.data)))
         elif topic == fmt.ANSWERS_TOPIC:

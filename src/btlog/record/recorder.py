@@ -1,13 +1,15 @@
 """The recorder: a subscriber that appends a run's events to an MCAP file as they happen.
 
 The cost that matters is per event, and an MCAP message costs microseconds while a Python
-list append costs tens of nanoseconds. So the hot path only appends rows: the executor
-appends each status change to the recorder's ``status_rows`` itself (``on_status`` does
-the same for other callers), ``on_write`` builds one tuple, and ``on_tick`` turns the
-tick's rows into one ``/btlog/events`` message (orjson encodes the rows in one call).
-Grouping changes nothing for a reader: every row keeps its own ``seq``, ``t_ns`` and
-``tick``. The MCAP writer's work — adding messages, compressing and writing chunks — runs
-on the recorder's own thread (``btlog.record.background``), in the order it was asked for.
+list append costs tens of nanoseconds. So the hot path only buffers: the executor extends
+the recorder's ``status_buffer`` with each status change's six fields itself
+(``on_status`` does the same for other callers), ``on_write`` builds one tuple, and
+``on_tick`` hands the buffered rows, once about a thousand have gathered, to the
+recorder's own thread (``btlog.record.background``). That thread encodes them as one
+``/btlog/events`` message of binary columns (``btlog.record.columns``; one ``struct``
+call packs every row) and does the MCAP writer's work — adding messages, compressing and
+writing chunks — in the order it was asked for. Grouping changes nothing for a reader:
+every row keeps its own ``seq``, ``t_ns`` and ``tick``.
 
 Crash safety comes from flushing by wall time: a tick flushes (the MCAP writer's chunk is
 closed and flushed to the file) when the *next* tick, expected as far away as the last
@@ -33,15 +35,16 @@ from datetime import UTC, datetime, timedelta
 from typing import Any
 
 import orjson
-from mcap.well_known import MessageEncoding, SchemaEncoding
+from mcap.well_known import SchemaEncoding
 from mcap.writer import CompressionType, Writer
 
 import btlog
 from btlog.events import Subscriber, TickRecord, TreeMutation
+from btlog.record import columns
 from btlog.record import format as fmt
 from btlog.record.background import BackgroundWriter
 from btlog.schema import schema_text
-from btlog.status import STATUS_NAMES, Status
+from btlog.status import Status
 from btlog.tree.model import Tree
 
 #: Chunk compression of new recordings (see benchmarks/bench_recorder.py for the figures).
@@ -58,6 +61,10 @@ XML_MEDIA_TYPE = "application/xml"
 _EPOCH = datetime(1970, 1, 1, tzinfo=UTC)
 _INT_MIN = -(2**63)
 _INT_LIMIT = 2**64
+#: Fields of a status change in the status buffer.
+_FIELDS = 6
+#: Bytes a write row takes in a message, about: for the chunk size only.
+_WRITE_BYTES = 64
 
 
 def json_value(value: Any) -> Any:
@@ -165,7 +172,7 @@ class Recorder(Subscriber):
         self.event_count = 0
         self.last_seq: int | None = None
         self._closed = False
-        self._status_rows: list[tuple] = []
+        self._status_fields: list = []  # six fields per change, flat
         self._write_rows: list[tuple] = []
         self._tick_rows: list[tuple] = []
         self._file = open(self.path, "wb")  # noqa: SIM115
@@ -188,11 +195,17 @@ class Recorder(Subscriber):
         writer = self._writer
         writer.start(profile="", library=f"btlog/{btlog.__version__}")
         channels = {}
-        for topic, (schema_name, schema_file) in fmt.TOPICS.items():
-            schema_id = writer.register_schema(
-                schema_name, SchemaEncoding.JSONSchema, schema_text(schema_file)
+        schemas: dict[tuple[str, str], int] = {}
+        for topic, (schema_name, schema_file, encoding) in fmt.TOPICS.items():
+            schema_encoding = (
+                encoding if encoding == columns.ENCODING else SchemaEncoding.JSONSchema
             )
-            channels[topic] = writer.register_channel(topic, MessageEncoding.JSON, schema_id)
+            key = (schema_name, schema_file)
+            if key not in schemas:
+                schemas[key] = writer.register_schema(
+                    schema_name, schema_encoding, schema_text(schema_file)
+                )
+            channels[topic] = writer.register_channel(topic, encoding, schemas[key])
         writer.add_metadata(fmt.METADATA_NAME, self.metadata)
         now = time.time_ns()
         for name, data in attachments:
@@ -207,36 +220,36 @@ class Recorder(Subscriber):
         self, seq: int, t_ns: int, tick: int, uid: int, prev: Status, status: Status
     ) -> None:
         """Buffer a status change (replaced per instance by ``_status_appender``)."""
-        rows = self._status_rows
-        rows.append((seq, t_ns, tick, uid, STATUS_NAMES[prev], STATUS_NAMES[status]))
-        if self.max_tick_events is not None and len(rows) > self.max_tick_events:
+        fields = self._status_fields
+        fields.extend((seq, t_ns, tick, uid, prev, status))
+        if self.max_tick_events is not None and len(fields) > self.max_tick_events * _FIELDS:
             self._overflow()
 
-    def status_rows(self) -> list[tuple] | None:
-        """The buffer of status rows, for the executor to append to directly; None when
-        the buffer is bounded (``max_tick_events``) or a subclass overrides ``on_status``."""
+    def status_buffer(self) -> list | None:
+        """The status buffer, for the executor to extend directly; None when the buffer is
+        bounded (``max_tick_events``) or a subclass overrides ``on_status``."""
         if self.max_tick_events is not None or type(self).on_status is not Recorder.on_status:
             return None
-        return self._status_rows
+        return self._status_fields
 
     def _status_appender(self) -> Callable[[int, int, int, int, Status, Status], None]:
-        """``on_status`` as a closure over the row list: no attribute look-up per event,
-        which is most of what a method would cost beyond the append itself."""
-        rows = self._status_rows
-        append, names, limit = rows.append, STATUS_NAMES, self.max_tick_events
+        """``on_status`` as a closure over the buffer: no attribute look-up per event,
+        which is most of what a method would cost beyond the ``extend`` itself."""
+        fields = self._status_fields
+        extend, limit = fields.extend, self.max_tick_events
         overflow = self._overflow
-        bound = limit or 0  # used only when there is a limit
+        bound = (limit or 0) * _FIELDS  # used only when there is a limit
 
         def on_status(
             seq: int, t_ns: int, tick: int, uid: int, prev: Status, status: Status
         ) -> None:
-            append((seq, t_ns, tick, uid, names[prev], names[status]))
+            extend((seq, t_ns, tick, uid, prev, status))
 
         def on_status_bounded(
             seq: int, t_ns: int, tick: int, uid: int, prev: Status, status: Status
         ) -> None:
-            append((seq, t_ns, tick, uid, names[prev], names[status]))
-            if len(rows) > bound:
+            extend((seq, t_ns, tick, uid, prev, status))
+            if len(fields) > bound:
                 overflow()
 
         appender = on_status if limit is None else on_status_bounded
@@ -263,7 +276,7 @@ class Recorder(Subscriber):
     def _overflow(self) -> None:
         """A long tick: write its events so far, and flush if the interval has passed."""
         if self._closed:  # events after close are dropped, not kept
-            self._status_rows.clear()
+            self._status_fields.clear()
             self._write_rows.clear()
             return
         self._write_events()
@@ -278,14 +291,20 @@ class Recorder(Subscriber):
         if self._closed:
             return
         tick, start_ns, end_ns, root_status, teardown = record
-        row = (tick, start_ns, end_ns, STATUS_NAMES[root_status])
+        row = (tick, start_ns, end_ns, root_status)
         if teardown:  # a message of its own, marked: the run's final halt
             self._write_events(tick)
             self._write_ticks()
-            self._add(fmt.TICKS_TOPIC, {"ticks": [row], "teardown": True}, end_ns)
+            self._add_columns(
+                fmt.TICKS_TOPIC,
+                end_ns,
+                columns.pack_ticks,
+                ([row], True),
+                columns.HEAD.size + columns.TICK_ROW_BYTES,
+            )
             return
         self._tick_rows.append(row)
-        if len(self._status_rows) + len(self._write_rows) >= self.group_events:
+        if len(self._status_fields) // _FIELDS + len(self._write_rows) >= self.group_events:
             self._write_events(tick)
             self._write_ticks()
             self._end_chunk_if_full()
@@ -376,32 +395,45 @@ class Recorder(Subscriber):
 
     def _write_events(self, tick: int | None = None) -> None:
         """One ``/btlog/events`` message with the buffered rows (``tick`` defaults to the
-        last row's)."""
-        status, writes = self._status_rows, self._write_rows
-        if not status and not writes:
+        last row's), encoded on the writer's thread."""
+        fields, writes = self._status_fields, self._write_rows
+        if not fields and not writes:
             return
-        last = status[-1] if status else writes[-1]
-        if status and writes and writes[-1][0] > last[0]:
+        last = (fields[-6], fields[-5], fields[-4]) if fields else writes[-1]
+        if fields and writes and writes[-1][0] > last[0]:
             last = writes[-1]
-        data = orjson.dumps(
-            {"tick": last[2] if tick is None else tick, "status": status, "writes": writes}
+        count = len(fields) // _FIELDS
+        self._add_columns(
+            fmt.EVENTS_TOPIC,
+            last[1],
+            columns.pack_events,
+            (last[2] if tick is None else tick, fields.copy(), writes.copy()),
+            columns.HEAD.size + count * columns.EVENT_ROW_BYTES + len(writes) * _WRITE_BYTES,
         )
-        self._background.add_message(
-            self._events_channel, self.start_ns + last[1], data, time.time_ns()
-        )
-        self._chunk_bytes += len(data)
-        self.event_count += len(status) + len(writes)
+        self.event_count += count + len(writes)
         self.last_seq = last[0]
-        status.clear()
+        fields.clear()
         writes.clear()
 
     def _write_ticks(self) -> None:
-        if self._tick_rows:
-            self._add(fmt.TICKS_TOPIC, {"ticks": self._tick_rows}, self._tick_rows[-1][2])
+        rows = self._tick_rows
+        if rows:
+            size = columns.HEAD.size + len(rows) * columns.TICK_ROW_BYTES
+            self._add_columns(fmt.TICKS_TOPIC, rows[-1][2], columns.pack_ticks, (rows,), size)
             self._tick_rows = []
 
+    def _add_columns(
+        self, topic: str, t_ns: int, encode: Callable[..., bytes], args: tuple, size: int
+    ) -> None:
+        """Queue a binary message, encoded by ``encode(*args)`` on the writer's thread
+        (``size``: its bytes, about, for the chunk size)."""
+        self._background.add_encoded(
+            self._channels[topic], self.start_ns + t_ns, encode, args, time.time_ns()
+        )
+        self._chunk_bytes += size
+
     def _add(self, topic: str, message: dict, t_ns: int) -> None:
-        """Write one message whose log_time is the run's start plus ``t_ns``."""
+        """Write one JSON message whose log_time is the run's start plus ``t_ns``."""
         data = fmt.dumps(message)
         self._background.add_message(
             self._channels[topic], self.start_ns + t_ns, data, time.time_ns()

@@ -123,7 +123,7 @@ class _Copier:
         self.report.messages += 1
         try:
             self._count(topic, message.data)
-        except (orjson.JSONDecodeError, AttributeError, TypeError, IndexError, ValueError):
+        except (orjson.JSONDecodeError, AttributeError, TypeError, LookupError, ValueError):
             self.report.warnings.append(
                 f"{self.report.source}: a {topic} message is not "
                 "in the btlog format (copied, not counted)"
@@ -131,8 +131,8 @@ class _Copier:
 
     def _count(self, topic: str, data: bytes) -> None:
         if topic == fmt.EVENTS_TOPIC:
-            body = orjson.loads(data)
-            seqs = [row[0] for key in ("status", "writes") for row in body.get(key, ())]
+            events = fmt.parse_events(data)
+            seqs = [row[0] for rows in (events.status, events.writes) for row in rows]
             self.report.events += len(seqs)
             if seqs:
                 self.report.note_seqs(min(seqs), max(seqs))
@@ -142,7 +142,7 @@ class _Copier:
             if isinstance(seq, int):
                 self.report.note_seqs(seq, seq)
         elif topic == fmt.TICKS_TOPIC:
-            self.report.ticks += len(orjson.loads(data).get("ticks", ()))
+            self.report.ticks += len(fmt.decode_ticks(data))
 
 
 def recover(broken: str | os.PathLike, fixed: str | os.PathLike) -> RecoveryReport:

@@ -176,9 +176,10 @@ def _alive(pid: int) -> bool:
 def build(path: str, cache: Path, snapshot_every: int) -> ingestion.IngestReport:
     """Ingest ``path``'s tables into a new cache file, moved into place when complete.
 
-    The tables are loaded in memory, then copied into the file (DuckDB compresses them
-    in C++). The snapshots are not built here: a first question in SQL needs only the
-    tables; the first state asked for builds them (``build_snapshots``).
+    The tables are loaded straight into the file (DuckDB compresses them as they come:
+    loading in memory and copying took ~0.4 s more for 5M events, measured, for a file
+    5 % smaller). The snapshots are not built here: a first question in SQL needs only
+    the tables; the first state asked for builds them (``build_snapshots``).
     """
     cache.parent.mkdir(parents=True, exist_ok=True)
     temporary = _temporary(cache)
@@ -186,9 +187,10 @@ def build(path: str, cache: Path, snapshot_every: int) -> ingestion.IngestReport
     try:
         small = os.path.getsize(path) < SMALL_RECORDING
         con.execute(f"ATTACH $path AS cache_file{_blocks(small)}", {"path": str(temporary)})
+        con.execute("USE cache_file")
         create_schema(con)
         report = ingestion.load_tables(con, path, snapshot_every=snapshot_every)
-        _copy_tables(con.cursor())
+        con.execute("USE memory")
         con.execute("DETACH cache_file")
         os.replace(temporary, cache)
     finally:
@@ -236,11 +238,3 @@ def _remove_temporary(temporary: Path) -> None:
 def _blocks(small: bool) -> str:
     """The ATTACH option of a cache file: 16 KiB blocks for a small recording."""
     return " (BLOCK_SIZE 16384)" if small else ""
-
-
-def _copy_tables(cursor: duckdb.DuckDBPyConnection) -> None:
-    """Copy the in-memory database (types and tables) into the attached cache file."""
-    try:
-        cursor.execute("COPY FROM DATABASE memory TO cache_file")
-    finally:
-        cursor.close()

@@ -2,9 +2,12 @@
 
 ``McapScan`` (``btlog.replay.scan``) hands over ``RowBatch``es while it walks the file;
 ``Loader`` loads each in one of two lanes (status rows; write and tick rows), in file
-order. Status and tick rows become CSV with one ``bytes.translate`` (``[`` turned into
-a newline, ``"`` and ``]`` deleted: ``[1,2,"IDLE","RUNNING"],`` → ``⏎1,2,IDLE,RUNNING,``)
-and go through Arrow's multithreaded CSV reader; each message's write rows become one
+order. Binary columns (schema version 3, ``btlog.record.columns``) become Arrow arrays
+over their bytes as they are, statuses checked and taken as the ENUM's codes: no row is
+parsed. JSON status and tick rows (versions 1 and 2) become CSV with one
+``bytes.translate`` (``[`` turned into a newline, ``"`` and ``]`` deleted:
+``[1,2,"IDLE","RUNNING"],`` → ``⏎1,2,IDLE,RUNNING,``) and go through Arrow's
+multithreaded CSV reader; each message's write rows become one
 line of newline-delimited JSON for DuckDB's ``read_json``. Both parsers release the
 GIL, so walking, parsing CSV and parsing JSON overlap. Rows these parsers refuse (an
 unknown status, a row of another shape) are decoded with orjson and loaded through
@@ -25,8 +28,9 @@ import pyarrow as pa
 import pyarrow.compute as pa_compute
 import pyarrow.csv as pa_csv
 
+from btlog.record import format as fmt
 from btlog.record.walk import RecordingError
-from btlog.replay.scan import Collected, RowBatch
+from btlog.replay.scan import Collected, Columns, RowBatch
 from btlog.replay.tables import identifier, insert_arrow, one_row
 from btlog.status import STATUS_NAMES
 
@@ -83,12 +87,16 @@ class Loader:
         """Queue a batch's rows."""
         self.batches += 1
         run_id = self.run_id
+        if batch.status_columns.count:
+            self.rows.submit(_load_columns, run_id, "transitions", batch.status_columns)
         if batch.status:
             self.rows.submit(_load_csv_rows, run_id, "transitions", batch.status, _STATUS_CSV)
         if batch.writes:
             self.writes.submit(
                 _load_write_rows, run_id, batch.writes, self.folder / f"writes-{self.batches}.jsonl"
             )
+        if batch.tick_columns.count:
+            self.writes.submit(_load_columns, run_id, "ticks", batch.tick_columns)
         if batch.ticks:
             self.writes.submit(_load_csv_rows, run_id, "ticks", batch.ticks, _TICKS_CSV)
 
@@ -155,6 +163,23 @@ def _load_csv_rows(
 
 
 _STATUS_DICTIONARY = pa.array(STATUS_NAMES)
+_ARROW_TYPES = {"q": pa.int64(), "i": pa.int32(), "b": pa.int8()}
+
+
+def _load_columns(con: duckdb.DuckDBPyConnection, run_id: str, table: str, batch: Columns) -> None:
+    """Binary columns into ``table``: each an Arrow array over its bytes (no copy); a
+    status column becomes the ENUM's codes once its values are checked."""
+    arrays = {}
+    for (name, code), data in zip(batch.layout, batch.data, strict=True):
+        array = pa.Array.from_buffers(_ARROW_TYPES[code], batch.count, [None, pa.py_buffer(data)])
+        if name.endswith("status"):
+            low, high = pa_compute.min_max(array).values()
+            if low.as_py() < 0 or high.as_py() >= len(STATUS_NAMES):
+                bad = low if low.as_py() < 0 else high
+                raise ValueError(f"a {table} row has the status code {bad}, not a status")
+            array = pa.DictionaryArray.from_arrays(array, _STATUS_DICTIONARY)
+        arrays[name] = array
+    insert_arrow(con, table, run_id, pa.table(arrays))
 
 
 def _canonical_statuses(table: pa.Table) -> pa.Table | None:
@@ -271,21 +296,24 @@ def load_other_messages(
     con: duckdb.DuckDBPyConnection, run_id: str, collected: Collected, name: str
 ) -> None:
     """The messages the fast path did not recognise, decoded one by one."""
-    status: list[list] = []
+    status: list = []
     writes: list[list] = []
     try:
         for payload in collected.other_events:
-            message = orjson.loads(payload)
-            status.extend(message.get("status", ()))
-            writes.extend(message.get("writes", ()))
+            message = fmt.parse_events(payload)
+            status.extend((*row[:4], row[4].name, row[5].name) for row in message.status)
+            writes.extend(message.writes)
         _insert_status_rows(con, run_id, status)
         _insert_write_rows(con, run_id, writes)
         for payload in collected.other_ticks:  # the teardown's message is one of these
-            message = orjson.loads(payload)
+            ticks = fmt.decode_ticks(payload)
             _insert_tick_rows(
-                con, run_id, message.get("ticks", ()), bool(message.get("teardown", False))
+                con,
+                run_id,
+                [(t.tick, t.start_ns, t.end_ns, t.root_status.name) for t in ticks],
+                any(t.teardown for t in ticks),
             )
-    except (ValueError, TypeError, AttributeError, IndexError, duckdb.Error) as error:
+    except (ValueError, TypeError, AttributeError, LookupError, duckdb.Error) as error:
         raise RecordingError(
             f"{name}: a message does not follow the btlog format: {type(error).__name__}: {error}"
         ) from None

@@ -1,13 +1,17 @@
 """Cutting a recording's messages into row batches for bulk loading, without decoding.
 
 Python touches each *message* here (one per tick or per ~1000 grouped events), never
-each row; C++ parsers (``btlog.replay.load``) touch the rows. The file's records come
-from the one walker, ``btlog.record.walk`` (cut files, damaged chunks). Each
-``/btlog/events`` payload is cut into its two row lists: status rows hold only
-integers and status names, so the status list is the bytes between ``,"status":[`` and
-``],"writes":[``; blackboard rows carry arbitrary JSON values, so each message's write
-list is kept whole. Tick rows are cut like status rows. Anything else the fast path
-does not recognise (another key order, whitespace) is kept for the general decoding.
+each row; Arrow and C++ parsers (``btlog.replay.load``) touch the rows. The file's
+records come from the one walker, ``btlog.record.walk`` (cut files, damaged chunks).
+
+Schema version 3 (binary columns, ``btlog.record.columns``): each column of a message is
+appended to the batch's bytes of that column, as it is; the write rows' JSON is kept
+whole, per message. Versions 1 and 2 (JSON): each ``/btlog/events`` payload is cut into
+its two row lists: status rows hold only integers and status names, so the status list
+is the bytes between ``,"status":[`` and ``],"writes":[``; blackboard rows carry
+arbitrary JSON values, so each message's write list is kept whole. Tick rows are cut
+like status rows. Anything else the fast path does not recognise (another key order,
+whitespace, the teardown's ticks) is kept for the general decoding.
 """
 
 from __future__ import annotations
@@ -21,6 +25,7 @@ import orjson
 from mcap.opcode import Opcode
 from mcap.records import Channel
 
+from btlog.record import columns
 from btlog.record import format as fmt
 from btlog.record.walk import MESSAGE_HEAD, Walk, mapped, parse, records
 
@@ -35,16 +40,56 @@ BATCH_BYTES = 48 << 20
 
 
 @dataclass
+class Columns:
+    """Rows of binary messages, still bytes: each column's values one after the other."""
+
+    layout: tuple[tuple[str, str], ...]
+    count: int = 0
+    data: list[bytearray] = field(default_factory=list)
+
+    def __post_init__(self) -> None:
+        self.data = [bytearray() for _ in self.layout]
+
+    def add(self, buffer: bytes, message: columns.Message) -> None:
+        """Append the columns of ``message`` (located in ``buffer``)."""
+        view = memoryview(buffer)
+        for column, (start, end) in zip(self.data, message.columns, strict=True):
+            column += view[start:end]
+        self.count += message.count
+
+    @property
+    def size(self) -> int:
+        """Bytes held."""
+        return sum(len(column) for column in self.data)
+
+
+@dataclass
 class RowBatch:
-    """Rows of consecutive messages, still bytes: status and tick rows as comma-joined
-    row lists (``[…],[…],``), write rows as one row list per message."""
+    """Rows of consecutive messages, still bytes: binary status and tick rows as columns;
+    JSON status and tick rows as comma-joined row lists (``[…],[…],``); write rows as
+    one row list per message."""
 
     status: bytearray = field(default_factory=bytearray)
     writes: list[bytes | memoryview] = field(default_factory=list)
     ticks: bytearray = field(default_factory=bytearray)
+    status_columns: Columns = field(default_factory=lambda: Columns(columns.EVENT_COLUMNS))
+    tick_columns: Columns = field(default_factory=lambda: Columns(columns.TICK_COLUMNS))
 
     def __bool__(self) -> bool:
-        return bool(self.status or self.writes or self.ticks)
+        return bool(
+            self.status
+            or self.writes
+            or self.ticks
+            or self.status_columns.count
+            or self.tick_columns.count
+        )
+
+    @property
+    def size(self) -> int:
+        """Bytes of rows held (what bounds a batch)."""
+        return (
+            len(self.status) + len(self.ticks) + self.status_columns.size + self.tick_columns.size
+        )
 
 
 @dataclass
@@ -95,7 +140,7 @@ class McapScan:
                     self._events(buffer, body + MESSAGE_HEAD, end)
                 else:
                     self._message(buffer, body, end)
-                if len(self.batch.status) + len(self.batch.ticks) >= BATCH_BYTES:
+                if self.batch.size >= BATCH_BYTES:
                     self.on_batch(self.batch)
                     self.batch = RowBatch()
             elif opcode == channel:
@@ -106,6 +151,13 @@ class McapScan:
                     self.out.metadata = record.metadata
 
     def _events(self, buffer: bytes, start: int, end: int) -> None:
+        if buffer[start : start + 4] == columns.EVENTS_MAGIC:
+            message = columns.locate(buffer, start, end)
+            self.batch.status_columns.add(buffer, message)
+            writes, writes_end = message.writes
+            if writes_end - writes > 2:  # ``[[…],[…]]``: the rows without the brackets
+                self.batch.writes.append(memoryview(buffer)[writes + 1 : writes_end - 1])
+            return
         find = buffer.find
         status = find(_STATUS_KEY, start + 8, start + 40) + 11
         writes = find(_WRITES_KEY, status, end) if status > 10 else -1
@@ -133,7 +185,13 @@ class McapScan:
         payload = bytes(buffer[body + MESSAGE_HEAD : end])
         out = self.out
         if topic == fmt.TICKS_TOPIC:
-            if payload.startswith(_TICKS_HEAD) and payload.endswith(_TAIL):
+            if payload.startswith(columns.TICKS_MAGIC):
+                message = columns.locate(payload, 0, len(payload))
+                if message.teardown:
+                    out.other_ticks.append(payload)
+                else:
+                    self.batch.tick_columns.add(payload, message)
+            elif payload.startswith(_TICKS_HEAD) and payload.endswith(_TAIL):
                 if len(payload) > len(_TICKS_HEAD) + 2:
                     self.batch.ticks += memoryview(payload)[len(_TICKS_HEAD) : -2]
                     self.batch.ticks += b","
