@@ -184,7 +184,6 @@ class Recorder(Subscriber):
         except BaseException:
             self._file.close()
             raise
-        self._events_channel = self._channels[fmt.EVENTS_TOPIC]
         #: the writer's calls from now on, run on the recorder's thread
         self._background = BackgroundWriter(self._writer)
         self._last_flush = self._last_tick_at = time.monotonic()
