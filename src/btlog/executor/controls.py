@@ -34,12 +34,15 @@ class _InOrder(ControlBehavior):
         super().__init__(*args)
         self.index = 0
         self.skipped = 0
+        # the policy copied to the instance: CPython 3.11 looks a class attribute up
+        # through the whole MRO on every read, an instance attribute at once (hot path)
+        self._policy = (self.decisive, self.may_wake_up)
 
     def tick(self) -> Status:
         if self.status is IDLE:
             self.skipped = 0
         self.set_status(RUNNING)
-        children, decisive, may_wake_up = self.children, self.decisive, self.may_wake_up
+        children, (decisive, may_wake_up) = self.children, self._policy
         # the index is a local while the children tick (the hot path), stored back before
         # returning or calling what reads it; children change only between ticks
         index, count = self.index, len(children)
