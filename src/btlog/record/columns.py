@@ -41,7 +41,8 @@ HEAD = struct.Struct("<4sIIIq")
 TEARDOWN = 1
 
 #: (column name, struct code) of each topic, in message order.
-EVENT_COLUMNS = (
+Layout = tuple[tuple[str, str], ...]
+EVENT_COLUMNS: Layout = (
     ("seq", "q"),
     ("t_ns", "q"),
     ("tick", "q"),
@@ -49,7 +50,7 @@ EVENT_COLUMNS = (
     ("prev_status", "b"),
     ("status", "b"),
 )
-TICK_COLUMNS = (("tick", "q"), ("start_ns", "q"), ("end_ns", "q"), ("root_status", "b"))
+TICK_COLUMNS: Layout = (("tick", "q"), ("start_ns", "q"), ("end_ns", "q"), ("root_status", "b"))
 #: Bytes of one row across the columns.
 EVENT_ROW_BYTES = struct.calcsize("<qqqibb")
 TICK_ROW_BYTES = struct.calcsize("<qqqb")

@@ -17,7 +17,7 @@ Arrow instead: slower, never wrong.
 from __future__ import annotations
 
 from collections import deque
-from collections.abc import Callable
+from collections.abc import Callable, Sequence
 from concurrent.futures import Future, ThreadPoolExecutor
 from pathlib import Path
 from typing import Any
@@ -265,7 +265,7 @@ def _insert_write_rows(con: duckdb.DuckDBPyConnection, run_id: str, rows: list[l
 
 
 def _insert_tick_rows(
-    con: duckdb.DuckDBPyConnection, run_id: str, rows: list[list], teardown: bool = False
+    con: duckdb.DuckDBPyConnection, run_id: str, rows: Sequence[Sequence], teardown: bool = False
 ) -> None:
     if not rows:
         return
