@@ -326,7 +326,7 @@ def main() -> None:
         size = sum(f.stat().st_size for f in cache.iterdir()) / 1e6
         print(
             f"open_runs, first open (cache built): {total:.2f} s = tables "
-            f"{built.ingest_seconds:.2f} s (loaded into the cache file) + the rest {rest:.2f} s; then the "
+            f"{built.ingest_seconds:.2f} s (into the cache file) + the rest {rest:.2f} s; then the "
             f"snapshots, on the first state asked for: {snapshots:.2f} s (K = "
             f"{args.snapshot_every}); caches {size:.0f} MB"
         )
