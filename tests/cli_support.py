@@ -10,14 +10,9 @@ from pathlib import Path
 ROOT = Path(__file__).resolve().parent.parent
 
 
-def btlog(
-    *args: str | os.PathLike,
-    cwd: str | os.PathLike | None = ROOT,
-    env: dict[str, str] | None = None,
-    timeout: float = 120,
-) -> subprocess.CompletedProcess:
-    """Run ``btlog ARGS`` (this checkout's source) and capture its output as text; colour is
-    off and ``BTLOG_DEBUG`` unset unless ``env`` (added to the environment) sets it."""
+def btlog_environment(env: dict[str, str] | None = None) -> dict[str, str]:
+    """The environment ``btlog`` runs in: this checkout's source first on the path, colour
+    off and ``BTLOG_DEBUG`` unset unless ``env`` (added) sets it."""
     paths = [str(ROOT / "src"), os.environ.get("PYTHONPATH", "")]
     environment = {
         **os.environ,
@@ -26,10 +21,26 @@ def btlog(
     }
     environment.pop("BTLOG_DEBUG", None)
     environment.update(env or {})
+    return environment
+
+
+def btlog_command(*args: str | os.PathLike) -> list[str]:
+    """The command line of ``btlog ARGS``, for tests that start it themselves."""
+    return [sys.executable, "-m", "btlog.cli.main", *map(str, args)]
+
+
+def btlog(
+    *args: str | os.PathLike,
+    cwd: str | os.PathLike | None = ROOT,
+    env: dict[str, str] | None = None,
+    timeout: float = 120,
+) -> subprocess.CompletedProcess:
+    """Run ``btlog ARGS`` (this checkout's source) and capture its output as text (see
+    ``btlog_environment``)."""
     return subprocess.run(
-        [sys.executable, "-m", "btlog.cli.main", *map(str, args)],
+        btlog_command(*args),
         cwd=cwd,
-        env=environment,
+        env=btlog_environment(env),
         capture_output=True,
         text=True,
         timeout=timeout,

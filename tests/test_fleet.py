@@ -12,10 +12,11 @@ import pytest
 
 from btlog.fleet.compact import compact_lake
 from btlog.fleet.lake import LAKE_TABLES, export_runs, open_lake
+from btlog.fleet.lock import lake_lock
 from btlog.fleet.report import duckdb_report
 from btlog.replay.database import open_runs
 from btlog.runner import RunConfig, execute
-from tests.cli_support import btlog
+from tests.cli_support import btlog, btlog_command, btlog_environment
 
 ROOT = Path(__file__).resolve().parent.parent
 KITTING = str(ROOT / "trees" / "kitting.xml")
@@ -314,3 +315,50 @@ def test_export_in_processes_writes_the_same_lake(lake, runs, tmp_path):
     )
     assert failed.returncode == 2
     assert failed.stderr.count("\n") == 1 and "bad.mcap" in failed.stderr
+
+
+def test_exports_into_one_lake_at_once_give_the_lake_of_one_export(lake, runs, tmp_path):
+    """Two CI jobs exporting into one shared lake: the same report as one export."""
+    folder = tmp_path / "shared"
+    halves = [runs[0::2], runs[1::2]]
+    jobs = [
+        subprocess.Popen(
+            btlog_command("export", *half, "--parquet", folder), env=btlog_environment()
+        )
+        for half in halves
+    ]
+    assert [job.wait(timeout=120) for job in jobs] == [0, 0]
+    compact_lake(folder)  # the two final compactions may each have left the other's files
+    assert duckdb_report(str(folder)).to_json() == duckdb_report(str(lake)).to_json()
+    assert len(list(folder.glob("transitions/*/*/*.parquet"))) == 2
+
+
+@pytest.mark.parametrize(
+    ("held", "command"),
+    [(False, ["fleet", "{lake}", "--compact", "--json"]), (True, ["fleet", "{lake}", "--json"])],
+    ids=["a compaction waits for a reader", "a reader waits for a compaction"],
+)
+def test_compaction_and_readers_wait_for_each_other(lake, tmp_path, held, command):
+    copy = tmp_path / "lake"
+    shutil.copytree(lake, copy)
+    arguments = [part.format(lake=copy) for part in command]
+    with lake_lock(copy, exclusive=held):
+        waiting = subprocess.Popen(
+            btlog_command(*arguments),
+            stdout=subprocess.PIPE,
+            stderr=subprocess.PIPE,
+            env=btlog_environment(),
+        )
+        with pytest.raises(subprocess.TimeoutExpired):
+            waiting.wait(timeout=3)  # the other side holds the lock
+    out, err = waiting.communicate(timeout=60)
+    assert waiting.returncode == 0, err
+    import json
+
+    assert json.loads(out) == duckdb_report(str(lake)).to_json()
+
+
+def test_reading_a_folder_that_is_no_lake_leaves_nothing_behind(tmp_path):
+    done = btlog("fleet", str(tmp_path))
+    assert done.returncode == 2 and "not a btlog lake" in done.stderr
+    assert list(tmp_path.iterdir()) == []

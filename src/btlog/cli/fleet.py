@@ -108,16 +108,14 @@ def lake_sql(args: Namespace) -> tuple[list[str], list[tuple]]:
     import duckdb
 
     from btlog.errors import one_line
-    from btlog.fleet.lake import open_lake
+    from btlog.fleet.lake import reading_lake
     from btlog.replay.database import ReplayError, only_queries
 
-    con = open_lake(args.lake)
-    try:
-        only_queries(con, args.query)
-        cursor = con.execute(args.query)
-        columns = [d[0] for d in cursor.description or ()]
-        return columns, cursor.fetchall() if cursor.description else []
-    except duckdb.Error as error:
-        raise ReplayError(f"SQL error: {one_line(error)}") from None
-    finally:
-        con.close()
+    with reading_lake(args.lake) as con:
+        try:
+            only_queries(con, args.query)
+            cursor = con.execute(args.query)
+            columns = [d[0] for d in cursor.description or ()]
+            return columns, cursor.fetchall() if cursor.description else []
+        except duckdb.Error as error:
+            raise ReplayError(f"SQL error: {one_line(error)}") from None

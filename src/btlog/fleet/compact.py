@@ -15,7 +15,8 @@ Safety: each merged file is written under a hidden temporary name, flushed to di
 renamed into place, ``runs`` last; only then are the merged inputs removed. A crash at
 any point loses nothing and leaves a readable lake; at worst some runs show twice until
 the next compaction (any export, or ``btlog fleet LAKE --compact``) removes the
-leftovers. One writer at a time: do not export or compact into one lake concurrently.
+leftovers. A compaction holds the lake's lock exclusively (``btlog.fleet.lock``): exports
+and queries of the lake wait for it, and it for them.
 """
 
 from __future__ import annotations
@@ -28,6 +29,7 @@ from pathlib import Path
 import duckdb
 
 from btlog.fleet.lake import FILES, LAKE_TABLES, LakeError
+from btlog.fleet.lock import lake_lock
 
 
 def partitions(lake: str | os.PathLike) -> list[str]:
@@ -43,12 +45,13 @@ def compact_lake(lake: str | os.PathLike, only: Iterable[str] | None = None) -> 
     if not (root / "runs").is_dir():
         raise LakeError(f"{lake}: not a btlog lake (no runs folder)")
     rewritten = 0
-    con = duckdb.connect()
-    try:
-        for partition in only if only is not None else partitions(root):
-            rewritten += _compact_partition(con, root, partition)
-    finally:
-        con.close()
+    with lake_lock(root, exclusive=True):
+        con = duckdb.connect()
+        try:
+            for partition in only if only is not None else partitions(root):
+                rewritten += _compact_partition(con, root, partition)
+        finally:
+            con.close()
     return rewritten
 
 

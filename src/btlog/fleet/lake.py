@@ -12,19 +12,23 @@ each table (the ``runs`` table last, which marks the run complete); a compaction
 (``btlog.fleet.compact``, at the end of every export) merges a partition's files into
 one ``part-{stamp}.parquet`` per table, so a lake of thousands of runs is a few files per
 day and domain. Re-exporting a run replaces its rows, so an export can be repeated.
+Exports and readers may run side by side; a compaction waits for them and they for it
+(``btlog.fleet.lock``).
 """
 
 from __future__ import annotations
 
 import os
 import re
-from collections.abc import Callable, Iterable
+from collections.abc import Callable, Iterable, Iterator
+from contextlib import contextmanager
 from dataclasses import dataclass
 from pathlib import Path
 
 import duckdb
 
 from btlog.fleet.derived import create_derived, drop_derived
+from btlog.fleet.lock import lake_lock
 from btlog.replay.database import ReplayError, Run, open_runs
 from btlog.replay.tables import PUBLIC_TABLES, identifier
 
@@ -81,11 +85,13 @@ def export_runs(
     root = Path(lake)
     paths = [os.fspath(r) for r in recordings]
     done: list[Exported] = []
+    (root / "runs").mkdir(parents=True, exist_ok=True)
     try:
-        if jobs > 1 and len(paths) > 1:
-            _export_in_processes(paths, root, jobs, done, on_run)
-        else:
-            done.extend(_export_serially(paths, str(root), on_run))
+        with lake_lock(root, exclusive=False):
+            if jobs > 1 and len(paths) > 1:
+                _export_in_processes(paths, root, jobs, done, on_run)
+            else:
+                done.extend(_export_serially(paths, str(root), on_run))
     finally:
         if compact and done:
             from btlog.fleet.compact import compact_lake
@@ -207,6 +213,18 @@ def open_lake(lake: str | os.PathLike) -> duckdb.DuckDBPyConnection:
     return con
 
 
+@contextmanager
+def reading_lake(lake: str | os.PathLike) -> Iterator[duckdb.DuckDBPyConnection]:
+    """``open_lake``'s connection, closed at the end of the block, with the lake's lock
+    held shared meanwhile (no compaction removes a file under the query)."""
+    with lake_lock(lake, exclusive=False):
+        con = open_lake(lake)
+        try:
+            yield con
+        finally:
+            con.close()
+
+
 def _quoted(text: str) -> str:
     """``text`` inside a single-quoted SQL literal (paths are the user's own, but a
     quote in a folder name must not end the literal)."""
@@ -234,4 +252,5 @@ __all__ = [
     "export_runs",
     "open_lake",
     "partition_value",
+    "reading_lake",
 ]

@@ -114,10 +114,9 @@ def normalised(rows: list[dict[str, Any]]) -> list[dict[str, Any]]:
 def duckdb_report(lake: str, domain: str | None = None, date: str | None = None) -> FleetReport:
     """The fleet report over ``lake`` computed by DuckDB (optionally one domain/date:
     only those partitions are read)."""
-    from btlog.fleet.lake import open_lake
+    from btlog.fleet.lake import reading_lake
 
-    con = open_lake(lake)
-    try:
+    with reading_lake(lake) as con:
         where, params = partition_filter(domain, date, placeholder="$")
         report = FleetReport()
         for name, query in queries("duckdb", where).items():
@@ -129,8 +128,6 @@ def duckdb_report(lake: str, domain: str | None = None, date: str | None = None)
                 normalised([dict(zip(columns, r, strict=True)) for r in cursor.fetchall()]),
             )
         return report
-    finally:
-        con.close()
 
 
 def partition_filter(
