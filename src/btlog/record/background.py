@@ -66,16 +66,10 @@ class BackgroundWriter:
     ) -> None:
         """Queue ``Writer.add_message`` of the message ``encode(*args)``, encoded on the
         writer's thread (``args`` must not change afterwards: pass copies)."""
-        self._calls.put((self._add_encoded, (channel_id, log_time, encode, args, publish_time)))
+        self._calls.put((self._add_encoded, ((channel_id, log_time, encode, args, publish_time),)))
 
-    def _add_encoded(
-        self,
-        channel_id: int,
-        log_time: int,
-        encode: Callable[..., bytes],
-        args: tuple,
-        publish_time: int,
-    ) -> None:
+    def _add_encoded(self, call: tuple[int, int, Callable[..., bytes], tuple, int]) -> None:
+        channel_id, log_time, encode, args, publish_time = call
         self._writer.add_message(channel_id, log_time, encode(*args), publish_time)
 
     def flush(self) -> None:
