@@ -62,7 +62,7 @@ def write_messages(
         channels = {}
         for topic, (name, schema, encoding) in fmt.TOPICS.items():
             if json_rows and topic in fmt.JSON_SCHEMAS:
-                schema, encoding = fmt.JSON_SCHEMAS[topic], MessageEncoding.JSON
+                (name, schema), encoding = fmt.JSON_SCHEMAS[topic], MessageEncoding.JSON
             schema_encoding = (
                 SchemaEncoding.JSONSchema if encoding == MessageEncoding.JSON else encoding
             )

@@ -390,10 +390,14 @@ def test_values_that_are_not_json_are_recorded_as_repr(tmp_path):
 
 
 # -- schemas -----------------------------------------------------------------------------------
-def schema_for(topic: str, version: str = btlog.SCHEMA_VERSION) -> dict:
+def schema_for(topic: str) -> dict:
     """The JSON Schema of ``topic``'s messages (events and ticks: as version 2 wrote them)."""
-    name = fmt.JSON_SCHEMAS[topic] if topic in fmt.JSON_SCHEMAS else fmt.TOPICS[topic][1]
-    return json.loads(schema_text(name))
+    return json.loads(schema_text(schema_of(topic)[1]))
+
+
+def schema_of(topic: str) -> tuple[str, str]:
+    """(schema name, JSON Schema file) of ``topic``'s JSON messages."""
+    return fmt.JSON_SCHEMAS.get(topic) or fmt.TOPICS[topic][:2]
 
 
 def messages_by_topic(path: Path) -> dict[str, list[dict]]:
@@ -416,7 +420,7 @@ def test_events_and_ticks_are_binary_columns_on_channels_that_say_so(tmp_path):
         schema = summary.schemas[channel.schema_id]
         assert channel.message_encoding == schema.encoding == columns.ENCODING
         assert schema.data == schema_text("columns.md")
-        assert schema.name == fmt.TOPICS[topic][0]
+        assert schema.name == "btlog.Columns"
     assert {channels[t].message_encoding for t in fmt.TOPICS} == {"json", columns.ENCODING}
     for topic, _, data in iter_messages(path):
         if topic in (fmt.EVENTS_TOPIC, fmt.TICKS_TOPIC):
@@ -435,7 +439,7 @@ def test_messages_have_exactly_the_fields_of_their_schemas(tmp_path):
     for topic, messages in found.items():
         schema = schema_for(topic)
         assert schema["$schema"] == "https://json-schema.org/draft/2020-12/schema"
-        assert schema["title"] == fmt.TOPICS[topic][0]
+        assert schema["title"] == schema_of(topic)[0]
         optional = {"teardown"} if topic == fmt.TICKS_TOPIC else set()
         assert set(schema["properties"]) == set(schema["required"]) | optional
         for message in messages:

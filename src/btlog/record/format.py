@@ -9,7 +9,7 @@ and ticks are binary columns (``btlog.record.columns``, documented in
 with each node ``{"uid", "parent_uid", "idx", "kind", "type", "name", "path", "scope",
 "ports": {name: {"value", "direction"}}, "attributes", "file", "line"}``.
 
-``/btlog/events`` (``btlog.Events``), messages grouping the events of one or more ticks
+``/btlog/events``, messages grouping the events of one or more ticks
 (a message is written once about a thousand events have gathered, and at every flush):
 ``tick``, the last tick the message covers; the status changes, each ``seq, t_ns, tick,
 uid, prev, status``; the blackboard writes, each ``[seq, t_ns, tick, scope, key, value,
@@ -26,7 +26,7 @@ all event kinds, mutations included. A ``value`` that is not JSON is its ``repr`
 "tick", "op", "parent_uid", "after_uid", "inserted_root_uid", "nodes": [node…],
 "question"}``.
 
-``/btlog/ticks`` (``btlog.Ticks``), batched tick records ``tick, start_ns, end_ns,
+``/btlog/ticks``, batched tick records ``tick, start_ns, end_ns,
 root_status``; the run's teardown is a message of its own, marked. Binary columns since
 schema version 3 (``btlog.record.columns``); before, ``{"ticks": [[…], …], "teardown"}``.
 
@@ -58,13 +58,16 @@ ANSWERS_TOPIC = "/btlog/answers"
 #: topic → (schema name, schema file in schemas/, message encoding) of new recordings
 TOPICS = {
     TREE_TOPIC: ("btlog.Tree", "tree.schema.json", MessageEncoding.JSON),
-    EVENTS_TOPIC: ("btlog.Events", "columns.md", columns.ENCODING),
+    EVENTS_TOPIC: ("btlog.Columns", "columns.md", columns.ENCODING),
     MUTATIONS_TOPIC: ("btlog.Mutation", "mutation.schema.json", MessageEncoding.JSON),
-    TICKS_TOPIC: ("btlog.Ticks", "columns.md", columns.ENCODING),
+    TICKS_TOPIC: ("btlog.Columns", "columns.md", columns.ENCODING),
     ANSWERS_TOPIC: ("btlog.Answer", "answer.schema.json", MessageEncoding.JSON),
 }
-#: The JSON Schemas of the events and ticks messages of schema versions 1 and 2.
-JSON_SCHEMAS = {EVENTS_TOPIC: "events.schema.json", TICKS_TOPIC: "ticks.schema.json"}
+#: (schema name, JSON Schema file) of the events and ticks of schema versions 1 and 2.
+JSON_SCHEMAS = {
+    EVENTS_TOPIC: ("btlog.Events", "events.schema.json"),
+    TICKS_TOPIC: ("btlog.Ticks", "ticks.schema.json"),
+}
 
 METADATA_NAME = "btlog.run"
 #: Metadata values stored as JSON text (the others are plain strings).
