@@ -123,10 +123,13 @@ def _attach_to_btcpp(
             assert polled.event.wait(10), "attach never polled"
             (sync / "go").touch()
             _wait_for(sync / "ran", oracle)
+            stop.set()
+            # BT.CPP keeps serving until told to quit: attach's last poll must come first
+            # (quitting at once made that poll time out under load: a false "silent").
+            result = attached.result(timeout=20)
         finally:
             stop.set()
             (sync / "quit").touch()
-        result = attached.result(timeout=20)
         theirs = oracle.result(timeout=30)
     if theirs is None:
         raise _OracleDied("BT.CPP's process ended without a result")
@@ -198,16 +201,14 @@ def test_attach_cli_answers_live_and_records_blackboard_changes(tmp_path: Path) 
                 (sync / "go").touch()
                 _wait_for(sync / "ran", oracle)
                 time.sleep(0.2)  # a blackboard poll after the last tick
-            except _OracleDied:
-                if proc is not None:
+                # Ctrl-C finishes the file cleanly, with a last poll: before BT.CPP quits
+                proc.send_signal(signal.SIGINT)
+                rest, errors = proc.communicate(timeout=20)
+            finally:
+                if proc is not None and proc.poll() is None:  # BT.CPP died, or a hang
                     proc.kill()
                     proc.wait(timeout=10)
-                raise
-            finally:
                 (sync / "quit").touch()
-            assert proc is not None
-            proc.send_signal(signal.SIGINT)  # Ctrl-C finishes the file cleanly
-            rest, errors = proc.communicate(timeout=20)
             _raise_if_publisher_fell_silent(errors)
             if oracle.result(timeout=30) is None:
                 raise _OracleDied("BT.CPP's process ended without a result")
