@@ -3,10 +3,11 @@
 A reader loads millions of status changes a second only if it does not parse them. So
 since schema version 3 the status changes and tick records travel as fixed-width
 little-endian **columns**: a reader copies each column into an Arrow array as it is,
-without looking at a row (``btlog.replay.scan``), and zstd compresses a column of
-similar numbers better than JSON text (2.8 against 6.2 bytes an event, measured on the
-replay benchmark's run). Blackboard writes carry arbitrary values and stay JSON, inside
-the same message; the tree, mutations and answers stay JSON messages.
+without looking at a row (``btlog.replay.scan``). A real run's recording is also about
+half the size (4.5 against 8.3 bytes an event on ``bench_replay``'s run; see
+``benchmarks/RESULTS.md``, where a synthetic run compresses worse). Blackboard writes
+carry arbitrary values and stay JSON, inside the same message; the tree, mutations and
+answers stay JSON messages.
 
 A message is a 24-byte head, the columns one after the other, then the writes::
 
@@ -40,8 +41,8 @@ TICKS_MAGIC = b"BTtk"
 HEAD = struct.Struct("<4sIIIq")
 TEARDOWN = 1
 
-#: (column name, struct code) of each topic, in message order.
 Layout = tuple[tuple[str, str], ...]
+#: (column name, struct code) of each topic, in message order.
 EVENT_COLUMNS: Layout = (
     ("seq", "q"),
     ("t_ns", "q"),
