@@ -67,7 +67,7 @@ def test_an_events_message_reads_back_as_written(tick, status, writes):
 @settings(max_examples=150, deadline=None)
 @given(st.lists(STATUS_ROW, min_size=1, max_size=40), st.integers(0, 5))
 def test_the_scan_finds_each_column_where_the_layout_says(rows, offset):
-    data = bytes(offset) + columns.pack_events(7, [f for row in rows for f in row], [])
+    data = bytes(offset) + columns.pack_event_rows(7, rows, [])
     located = columns.locate(data, offset, len(data))
     assert located.count == len(rows) and located.tick == 7 and not located.teardown
     for index, ((name, code), (start, end)) in enumerate(
@@ -88,7 +88,7 @@ def test_a_ticks_message_reads_back_as_written(rows, teardown):
 @settings(max_examples=100, deadline=None)
 @given(st.lists(STATUS_ROW, max_size=10), st.integers(-3, 3).filter(bool))
 def test_a_message_of_another_length_is_refused(rows, change):
-    data = columns.pack_events(1, [f for row in rows for f in row], [])
+    data = columns.pack_event_rows(1, rows, [])
     damaged = data + bytes(change) if change > 0 else data[:change]
     with pytest.raises(ValueError, match=r"binary message|bytes long, expected"):
         fmt.parse_events(damaged)

@@ -23,6 +23,8 @@ from typing import Any
 
 import orjson
 import pytest
+from hypothesis import HealthCheck, given, settings
+from hypothesis import strategies as st
 from mcap.reader import SeekingReader
 from mcap.writer import CompressionType, Writer
 
@@ -46,8 +48,10 @@ from btlog.record import format as fmt
 from btlog.record.background import BackgroundWriter
 from btlog.status import IDLE, RUNNING, SUCCESS, Status
 from btlog.tree.loader import load_tree, load_tree_text
-from btlog.tree.registry import Registry
+from btlog.tree.model import CONDITION
+from btlog.tree.registry import NodeType, Registry
 from tests.mcap_support import version_2_payload
+from tests.oracle.random_trees import generate
 
 KITTING = Path(__file__).resolve().parent.parent / "trees" / "kitting.xml"
 
@@ -564,8 +568,8 @@ SMALL_TREE = (
 
 @pytest.mark.parametrize("clock", ["simulated", "wall"])
 def test_a_recorder_alone_records_what_the_executor_emits(tmp_path, clock):
-    """A recorder as the only subscriber takes the executor's row fast path (status rows
-    appended by the executor itself); what it records is what ``on_status`` would see."""
+    """A recorder as the only subscriber takes status changes in batches (appended by
+    the nodes, numbered by the executor); what it records is what ``on_status`` would see."""
 
     def executor() -> Executor:
         chosen = SimClock(0.01) if clock == "simulated" else WallClock(0.01, paced=False)
@@ -574,7 +578,7 @@ def test_a_recorder_alone_records_what_the_executor_emits(tmp_path, clock):
     recorded, logged = executor(), executor()
     recorder = Recorder(tmp_path / "alone.mcap", recorded.tree, METADATA)
     recorded.subscribe(recorder)
-    assert recorder.status_buffer() is not None
+    assert recorder.takes_status_batches()
     log = EventLog()
     logged.subscribe(log)
     for _ in range(7):
@@ -593,11 +597,71 @@ def test_a_recorder_alone_records_what_the_executor_emits(tmp_path, clock):
         assert times == sorted(times) and times[-1] > 0
 
 
+class _BatchedLog(EventLog):
+    """An event log that takes status changes in batches, through the default
+    ``on_status_batch`` (which decodes each change for ``on_status``)."""
+
+    def takes_status_batches(self) -> bool:
+        return True
+
+
+@settings(
+    max_examples=25, deadline=None, suppress_health_check=[HealthCheck.function_scoped_fixture]
+)
+@given(st.integers(0, 10_000), st.sampled_from(["simulated", "wall"]), st.integers(1, 6))
+def test_batched_status_changes_are_numbered_as_they_happened(tmp_path, seed, clock, halt_at):
+    """Random trees with blackboard writes, a halt between ticks and a teardown: a recorder
+    alone and a batch-taking log (both fed in batches, numbered by the executor's
+    ``settle``) see exactly the events a plain log sees, one ``on_status`` a change."""
+    case = generate(seed)
+    registry = Registry()
+    registry.register(NodeType("ScriptedCondition", CONDITION, declared_only=True))
+    tree = load_tree_text(case.xml, registry)
+    outcomes = Outcomes.from_mapping(case.outcomes)
+
+    def run(subscriber) -> None:
+        chosen = SimClock(0.01) if clock == "simulated" else WallClock(0.01, paced=False)
+        executor = Executor(
+            tree, clock=chosen, leaf_factory=scripted_leaf_factory(tree, outcomes, seed=3)
+        )
+        executor.subscribe(subscriber)
+        for tick in range(1, case.max_ticks + 1):
+            if executor.tick() in (SUCCESS, Status.FAILURE):
+                break
+            if tick == halt_at:
+                executor.halt()  # changes between ticks: numbered in this tick
+        executor.close()
+
+    path = tmp_path / f"batched-{seed}-{clock}.mcap"
+    plain, batched = EventLog(), _BatchedLog()
+    run(Recorder(path, tree, METADATA))
+    run(plain)
+    run(batched)
+    recorded = open_recording(path)
+
+    def untimed(events) -> list:
+        return [e if isinstance(e, TreeMutation) else e._replace(t_ns=0) for e in events]
+
+    if clock == "simulated":
+        assert recorded.events == plain.events == batched.events
+    else:  # wall times differ between runs; each run's own times never go back
+        assert untimed(recorded.events) == untimed(plain.events) == untimed(batched.events)
+        for events in (recorded.events, batched.events):
+            times = [e.t_ns for e in events]
+            assert times == sorted(times)
+    assert [e.seq for e in recorded.events] == list(range(len(plain.events)))
+
+    def ticks(records) -> list:
+        return [(t.tick, t.root_status, t.teardown) for t in records]
+
+    assert ticks(recorded.ticks) == ticks(plain.ticks) == ticks(batched.ticks)
+
+
 def test_a_bounded_recorder_is_called_per_event(tmp_path):
     """With ``max_tick_events`` the recorder must see each event (to write long ticks in
     parts), so it offers no row buffer to the executor."""
     recorder = Recorder(tmp_path / "bounded.mcap", load_tree(KITTING), METADATA, max_tick_events=3)
-    assert recorder.status_buffer() is None
+    assert not recorder.takes_status_batches()
     recorder.close()
 
 

@@ -673,8 +673,8 @@ def test_rows_that_break_the_format_are_a_replay_error(kitting, tmp_path):
 @pytest.mark.parametrize(
     ("payload", "problem"),
     [
-        (columns.pack_events(1, [0, 0, 1, 1, 0, 1], [])[:-1], "expected 54"),
-        (columns.pack_events(1, [0, 0, 1, 1, 0, 7], []), "status code 7, not a status"),
+        (columns.pack_event_rows(1, [(0, 0, 1, 1, 0, 1)], [])[:-1], "expected 54"),
+        (columns.pack_event_rows(1, [(0, 0, 1, 1, 0, 7)], []), "status code 7, not a status"),
         (b"BTzz" + bytes(20), "JSONDecodeError"),  # neither a binary head nor JSON
         (b"BTev", "shorter than its head"),
     ],

@@ -17,9 +17,21 @@ event on the hot path); ``EventLog`` is a subscriber that keeps them as records.
 
 from __future__ import annotations
 
+import struct
 from typing import Any, NamedTuple
 
 from btlog.status import Status
+
+#: A status change as the executor batches it: the node's uid (i32), the previous and the
+#: new status (i8), little-endian. It is also the row of the recording's uid, prev and
+#: status columns (``btlog.record.columns``), so a batch is stored without decoding it.
+CHANGE = struct.Struct("<ibb")
+
+
+def change_rows(uid: int) -> tuple[tuple[bytes, ...], ...]:
+    """Every packed change of node ``uid``, indexed ``[prev][status]`` by status value:
+    a node looks its change up instead of building it."""
+    return tuple(tuple(CHANGE.pack(uid, prev, new) for new in Status) for prev in Status)
 
 
 class StatusChange(NamedTuple):
@@ -88,13 +100,27 @@ class Subscriber:
     ) -> None:
         """A status change."""
 
-    def status_buffer(self) -> list | None:
-        """A list the executor may extend with each status change's six fields ``seq,
-        t_ns, tick, uid, prev, status`` (flat, one change after the other; statuses as
-        ``Status``) instead of calling ``on_status``: one call less per event for a
-        subscriber that only buffers them, such as the recorder. None, the default,
-        means ``on_status`` is called."""
-        return None
+    def takes_status_batches(self) -> bool:
+        """True when the subscriber takes status changes in batches (``on_status_batch``)
+        instead of one ``on_status`` call each. The executor's nodes then append each
+        change to a list as a packed ``CHANGE`` they look up, without numbering it, which
+        is most of what a change costs a recorder; the executor hands the list over
+        before any other event, at every tick's start and end and whenever ``seq`` is
+        read. It does so only for a sole subscriber."""
+        return False
+
+    def on_status_batch(
+        self, seq: int, tick: int, t_ns: int, changes: list[bytes], times: list[int] | None
+    ) -> None:
+        """Status changes numbered ``seq``, ``seq + 1``, ..., all in tick ``tick``, each a
+        ``CHANGE`` (uid, prev, status). ``times`` holds each change's time, or is None
+        when they all happened at ``t_ns`` (a simulated clock's time within a tick). The
+        lists are the executor's and are cleared after the call: copy what you keep. The
+        default calls ``on_status`` for each."""
+        for index, change in enumerate(changes):
+            uid, prev, status = CHANGE.unpack(change)
+            at = t_ns if times is None else times[index]
+            self.on_status(seq + index, at, tick, uid, Status(prev), Status(status))
 
     def on_write(
         self,

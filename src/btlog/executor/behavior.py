@@ -30,10 +30,12 @@ class Runtime:
     """What every behaviour of one executor shares: the clock, the event feed, the tick.
 
     ``seq`` numbers the run's events. ``emit_status`` reports a status change (None when
-    nobody listens); ``append_row``, set only when a single subscriber buffers status
-    changes (``Subscriber.status_buffer``), is that buffer's ``extend``: the nodes'
-    hottest paths add the change's fields themselves, one call less per event than
-    ``emit_status``.
+    nobody listens). ``append_row``, set only when the sole subscriber takes status
+    changes in batches (``Subscriber.takes_status_batches``), adds a change to the
+    executor's batch: the nodes' hottest paths add their own ``changes[prev][new]``
+    (``btlog.events.change_rows``), one call less per event than ``emit_status``, and
+    leave numbering and timing to the executor, which hands the batch over
+    (``Executor.settle``) before ``seq`` or ``tick`` is read or changed.
     """
 
     __slots__ = ("append_row", "clock", "emit_status", "seq", "tick", "wake_up")
@@ -44,7 +46,7 @@ class Runtime:
         self.seq = 0
         self.wake_up = False
         self.emit_status: Callable[[int, Status, Status], None] | None = None
-        self.append_row: Callable[[tuple], None] | None = None
+        self.append_row: Callable[[bytes], None] | None = None
 
 
 class NodeExecutionError(RuntimeError):
@@ -104,6 +106,9 @@ class Behavior:
     ports: ClassVar[dict] = {}
     #: Ports the node cannot run without (checked when the executor is built).
     required_ports: ClassVar[tuple[str, ...]] = ()
+    #: This node's packed status changes, ``[prev][new]`` (``btlog.events.change_rows``),
+    #: set by the executor while a subscriber takes status changes in batches.
+    changes: tuple[tuple[bytes, ...], ...] = ()
 
     def __init__(self, node: Node, runtime: Runtime, board: Blackboard) -> None:
         self.node = node
@@ -149,10 +154,8 @@ class Behavior:
             self.status = new
             runtime = self.runtime
             append = runtime.append_row
-            if append is not None:  # the row emit_status would append, without the call
-                seq = runtime.seq
-                runtime.seq = seq + 1
-                append((seq, runtime.clock.t_ns, runtime.tick, self.uid, prev, new))
+            if append is not None:  # the change emit_status would add, without the call
+                append(self.changes[prev][new])
             elif runtime.emit_status is not None:
                 runtime.emit_status(self.uid, prev, new)
         return new
@@ -244,9 +247,7 @@ class Behavior:
             elif prev is not IDLE:  # reset_status, inlined: the hot path (as execute_tick)
                 child.status = IDLE
                 if append is not None:
-                    seq = runtime.seq
-                    runtime.seq = seq + 1
-                    append((seq, runtime.clock.t_ns, runtime.tick, child.uid, prev, IDLE))
+                    append(child.changes[prev][0])  # to IDLE
                 elif emit is not None:
                     emit(child.uid, prev, IDLE)
 

@@ -12,7 +12,7 @@ from __future__ import annotations
 from collections.abc import Callable
 from typing import Any
 
-from btlog.events import Subscriber, TickRecord, TreeMutation, type_name
+from btlog.events import CHANGE, Subscriber, TickRecord, TreeMutation, change_rows, type_name
 from btlog.executor.actions import ACTIONS
 from btlog.executor.behavior import (
     Behavior,
@@ -63,6 +63,11 @@ class Executor:
         self.runtime = Runtime(clock or SimClock())
         self.leaf_factory = leaf_factory
         self.subscribers: list[Subscriber] = []
+        #: status changes not yet numbered, packed (``CHANGE``), and their times when
+        #: the clock is not simulated (see ``settle``)
+        self._batch: list[bytes] = []
+        self._batch_times: list[int] | None = None
+        self._batch_taker: Subscriber | None = None
         self.root_board = Blackboard("")
         self.root_board.on_write = self._on_write
         self._initial_writes: list[tuple[Blackboard, str, Any]] = []
@@ -94,6 +99,8 @@ class Executor:
             behavior = cls(node, self.runtime, board)
             behavior.children = [self._build(child, board) for child in node.children]
         behavior.check_ports()
+        if self._batch_taker is not None:  # a subtree inserted while a recorder listens
+            behavior.changes = change_rows(node.uid)
         self.behaviors[node.uid] = behavior
         return behavior
 
@@ -130,23 +137,31 @@ class Executor:
         self._wire()
 
     def _wire(self) -> None:
-        """Build the ``emit_status`` the nodes call: with one subscriber that buffers status
-        changes (``status_buffer``), a single closure extending its list (no call per
-        event beyond the node's own); otherwise a call of every subscriber's
-        ``on_status``."""
+        """Build the ``emit_status`` the nodes call: with one subscriber that takes status
+        changes in batches, the executor's batch (see ``settle``); otherwise a call of
+        every subscriber's ``on_status``."""
+        self.settle()
         subscribers = tuple(self.subscribers)
         runtime = self.runtime
         runtime.append_row = None
+        self._batch_taker = None
         if not subscribers:
             runtime.emit_status = None
             return
-        now = runtime.clock.now_ns
-        buffer = subscribers[0].status_buffer() if len(subscribers) == 1 else None
-        if buffer is not None:
-            runtime.emit_status = self._row_emitter(buffer)
-            runtime.append_row = buffer.extend
+        if len(subscribers) == 1 and subscribers[0].takes_status_batches():
+            self._batch_taker = subscribers[0]
+            for behavior in self.behaviors.values():
+                if not behavior.changes:
+                    behavior.changes = change_rows(behavior.uid)
+            append = runtime.append_row = self._batch_appender()
+
+            def emit_change(uid: int, prev: Status, new: Status) -> None:
+                append(CHANGE.pack(uid, prev, new))
+
+            runtime.emit_status = emit_change
             return
-        handlers = tuple(_status_handler(s) for s in subscribers)
+        now = runtime.clock.now_ns
+        handlers = tuple(s.on_status for s in subscribers)
 
         def emit(uid: int, prev: Status, new: Status) -> None:
             seq = runtime.seq
@@ -157,21 +172,49 @@ class Executor:
 
         runtime.emit_status = emit
 
-    def _row_emitter(self, buffer: list) -> Callable[[int, Status, Status], None]:
-        """``emit_status`` extending ``buffer`` with ``seq, t_ns, tick, uid, prev, status``
-        (the clock's time read as ``t_ns``: an attribute of a ``SimClock``)."""
-        runtime, clock, extend = self.runtime, self.runtime.clock, buffer.extend
+    def _batch_appender(self) -> Callable[[bytes], None]:
+        """What adds a change to the batch: the list's own ``append`` with a simulated
+        clock, whose time changes only between ticks (``settle`` reads it once for the
+        batch); otherwise a function that also notes the change's time."""
+        batch, clock = self._batch, self.runtime.clock
+        if clock.simulated:
+            self._batch_times = None
+            return batch.append
+        times = self._batch_times = []
+        add, add_time, now = batch.append, times.append, clock.now_ns
 
-        def emit(uid: int, prev: Status, new: Status) -> None:
+        def append_timed(change: bytes) -> None:
+            add(change)
+            add_time(now())
+
+        return append_timed
+
+    def settle(self) -> None:
+        """Number the batched status changes and hand them to the subscriber that takes
+        them. The nodes only append changes (``Runtime.append_row``); numbering and
+        timing them here, once for the lot, is what makes a recorded change cheap. It
+        runs before anything else takes a ``seq`` (a write, a mutation, ``seq`` itself)
+        and before the tick or a simulated clock's time changes (``tick`` settles before
+        ``start_tick``), so the numbers and times are those of execution order."""
+        batch = self._batch
+        if batch:
+            runtime = self.runtime
             seq = runtime.seq
-            runtime.seq = seq + 1
-            extend((seq, clock.t_ns, runtime.tick, uid, prev, new))
-
-        return emit
+            runtime.seq = seq + len(batch)
+            times = self._batch_times
+            taker = self._batch_taker
+            try:
+                if taker is not None:
+                    taker.on_status_batch(seq, runtime.tick, runtime.clock.t_ns, batch, times)
+            finally:
+                batch.clear()
+                if times is not None:
+                    times.clear()
 
     def _on_write(self, scope: str, key: str, value: Any, writer: int | None) -> None:
         if not self.subscribers:
             return
+        self.settle()
         runtime = self.runtime
         seq = runtime.seq
         runtime.seq = seq + 1
@@ -198,6 +241,8 @@ class Executor:
             self.begin()
         runtime, root = self.runtime, self.root
         clock = runtime.clock
+        if self._batch:  # changes made between ticks (a halt) belong to the last tick
+            self.settle()
         tick = runtime.tick = runtime.tick + 1
         clock.start_tick(tick)
         start = clock.t_ns  # the clock read as the nodes' hot path reads it (no call)
@@ -210,6 +255,8 @@ class Executor:
         self.last_status = status
         subscribers = self.subscribers
         if subscribers:
+            if self._batch:
+                self.settle()
             record = _tick_record((tick, start, clock.t_ns, status, False))
             for subscriber in subscribers:
                 subscriber.on_tick(record)
@@ -238,12 +285,14 @@ class Executor:
         if self.torn_down or not self.started:
             return
         self.torn_down = True
+        self.settle()
         runtime = self.runtime
         runtime.tick += 1
         start = runtime.clock.now_ns()
         self.halt()
         self.last_status = IDLE
         if self.subscribers:
+            self.settle()
             record = TickRecord(runtime.tick, start, runtime.clock.now_ns(), IDLE, teardown=True)
             for subscriber in self.subscribers:
                 subscriber.on_tick(record)
@@ -265,6 +314,7 @@ class Executor:
         tick) and tell subscribers the run is over."""
         if teardown:
             self.teardown()
+        self.settle()
         for subscriber in self.subscribers:
             subscriber.on_close()
 
@@ -272,6 +322,7 @@ class Executor:
     @property
     def seq(self) -> int:
         """The number of events so far (the next event's seq)."""
+        self.settle()
         return self.runtime.seq
 
     def statuses(self) -> dict[int, Status]:
@@ -320,17 +371,3 @@ class Executor:
         for subscriber in self.subscribers:
             subscriber.on_mutation(mutation)
         return mutation
-
-
-def _status_handler(subscriber: Subscriber) -> Callable[[int, int, int, int, Status, Status], None]:
-    """What receives ``subscriber``'s status changes: its ``on_status``, or an extension of
-    its ``status_buffer``."""
-    buffer = subscriber.status_buffer()
-    if buffer is None:
-        return subscriber.on_status
-    extend = buffer.extend
-
-    def handler(seq: int, t_ns: int, tick: int, uid: int, prev: Status, new: Status) -> None:
-        extend((seq, t_ns, tick, uid, prev, new))
-
-    return handler

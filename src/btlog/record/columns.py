@@ -29,10 +29,13 @@ The same text is in ``schemas/columns.md``, the schema record of both channels.
 from __future__ import annotations
 
 import struct
+import sys
 from dataclasses import dataclass
 from functools import lru_cache
 
 import orjson
+
+from btlog.events import CHANGE
 
 #: The channel message encoding (and schema encoding) of the binary topics.
 ENCODING = "btlog.columns"
@@ -67,17 +70,106 @@ _EVENT_CODES = "".join(code for _name, code in EVENT_COLUMNS)
 _TICK_CODES = "".join(code for _name, code in TICK_COLUMNS)
 
 
-def pack_events(tick: int, fields: list, writes: list) -> bytes:
-    """An events message: ``fields`` holds the status changes' six fields one row after
-    the other (flat, as the recorder buffers them), ``writes`` the write rows."""
-    count = len(fields) // 6
+_I64 = struct.Struct("<q")
+#: Packing many Python ints as native ``long`` converts each int several times faster than
+#: ``q`` (which goes through ``_PyLong_AsByteArray`` once an int passes 2**30, as times
+#: in nanoseconds do); it gives the same bytes where ``long`` is 8 bytes and little-endian.
+_NATIVE_I64 = "l" if struct.calcsize("@l") == 8 and sys.byteorder == "little" else None
+
+
+@lru_cache(maxsize=512)
+def _i64_packer(count: int) -> struct.Struct:
+    if _NATIVE_I64 is not None:
+        return struct.Struct(f"@{count}{_NATIVE_I64}")
+    return struct.Struct(f"<{count}q")
+
+
+def _i64s(values: list[int]) -> bytes:
+    """``values`` as little-endian i64s."""
+    return _i64_packer(len(values)).pack(*values)
+
+
+def _changes_columns(changes: list[bytes]) -> bytes:
+    """The uid, prev and status columns of packed changes (``btlog.events.CHANGE``, 6
+    bytes a row): the rows joined, then each byte of a row moved to its column by
+    extended slices, which copies bytes without looking at a Python object."""
+    count = len(changes)
+    rows = b"".join(changes)
+    if len(rows) != 6 * count:
+        raise ValueError(f"{count} packed changes take {len(rows)} bytes, not {6 * count}")
+    out = bytearray(6 * count)
+    uids = 4 * count
+    for byte in range(4):
+        out[byte:uids:4] = rows[byte::6]
+    out[uids : uids + count] = rows[4::6]
+    out[uids + count :] = rows[5::6]
+    return bytes(out)
+
+
+def _merged_times(segments: list, times: list[int]) -> list[int]:
+    """Every change's time, in order, when some segments have one time for all their
+    changes and the others take theirs from ``times``."""
+    merged: list[int] = []
+    timed = 0
+    for k in range(0, len(segments), 4):
+        run, t_ns = segments[k + 2], segments[k + 3]
+        if t_ns is None:
+            merged += times[timed : timed + run]
+            timed += run
+        else:
+            merged += [t_ns] * run
+    return merged
+
+
+def pack_events(
+    tick: int, segments: list, changes: list[bytes], times: list[int], writes: list
+) -> bytes:
+    """An events message. The status changes come as the recorder buffers them:
+    ``changes`` packed (uid, prev, status: ``btlog.events.CHANGE``), ``segments`` the
+    runs of consecutive seqs in one tick, flat (``seq, tick, count, t_ns``), which give
+    the seq, time and tick columns (a segment whose ``t_ns`` is None takes its changes'
+    times, in order, from ``times``); ``writes`` holds the write rows."""
+    count = len(changes)
     body = b""
     if count:
-        body = _layout(_EVENT_CODES, count).pack(
-            *fields[0::6], *fields[1::6], *fields[2::6], *fields[3::6], *fields[4::6], *fields[5::6]
-        )
+        seqs: list[int] = []
+        ticks: list[bytes] = []
+        shared: list[bytes] = []  # the time column of segments that have one time
+        for k in range(0, len(segments), 4):
+            first, segment_tick, run, t_ns = segments[k : k + 4]
+            seqs.extend(range(first, first + run))
+            ticks.append(_I64.pack(segment_tick) * run)
+            if t_ns is not None:
+                shared.append(_I64.pack(t_ns) * run)
+        if not times:  # every segment has its time (an executor with a simulated clock)
+            at = b"".join(shared)
+        elif not shared:  # every change has its own (an importer, a wall clock)
+            at = _i64s(times)
+        else:
+            at = _i64s(_merged_times(segments, times))
+        if len(seqs) != count or len(at) != 8 * count:
+            raise ValueError(
+                f"segments of {len(seqs)} status changes and {len(at) // 8} times for "
+                f"{count} changes"
+            )
+        body = b"".join((_i64s(seqs), at, *ticks, _changes_columns(changes)))
     written = orjson.dumps(writes) if writes else b""
     return HEAD.pack(EVENTS_MAGIC, count, len(written), 0, tick) + body + written
+
+
+def pack_event_rows(tick: int, rows: list, writes: list) -> bytes:
+    """An events message of whole rows ``(seq, t_ns, tick, uid, prev, status)`` (any
+    seqs), for writers that have them, such as a conversion."""
+    segments: list = []
+    changes, times = [], []
+    for seq, t_ns, row_tick, uid, prev, status in rows:
+        changes.append(CHANGE.pack(uid, prev, status))
+        times.append(t_ns)
+        if segments and segments[-3] == row_tick and segments[-4] + segments[-2] == seq:
+            segments[-2] += 1
+        else:
+            segments += (seq, row_tick, 1, None)
+    return pack_events(tick, segments, changes, times, writes)
 
 
 def pack_ticks(rows: list, teardown: bool = False) -> bytes:

@@ -112,8 +112,7 @@ def parse_events(data: bytes) -> EventsMessage:
 
 def encode_events(message: EventsMessage) -> bytes:
     """The binary ``/btlog/events`` message of ``message`` (what the recorder writes)."""
-    fields = [field for row in message.status for field in row]
-    return columns.pack_events(message.tick, fields, message.writes)
+    return columns.pack_event_rows(message.tick, message.status, message.writes)
 
 
 def decode_events(data: bytes) -> list[StatusChange | BlackboardWrite]:

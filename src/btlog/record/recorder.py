@@ -1,15 +1,20 @@
 """The recorder: a subscriber that appends a run's events to an MCAP file as they happen.
 
 The cost that matters is per event, and an MCAP message costs microseconds while a Python
-list append costs tens of nanoseconds. So the hot path only buffers: the executor extends
-the recorder's ``status_buffer`` with each status change's six fields itself
-(``on_status`` does the same for other callers), ``on_write`` builds one tuple, and
-``on_tick`` hands the buffered rows, once about a thousand have gathered, to the
-recorder's own thread (``btlog.record.background``). That thread encodes them as one
-``/btlog/events`` message of binary columns (``btlog.record.columns``; one ``struct``
-call packs every row) and does the MCAP writer's work — adding messages, compressing and
-writing chunks — in the order it was asked for. Grouping changes nothing for a reader:
-every row keeps its own ``seq``, ``t_ns`` and ``tick``.
+list append costs tens of nanoseconds. So the hot path only buffers. The recorder takes
+status changes in batches (``Subscriber.on_status_batch``): each node appends its own
+packed change (uid, prev, status: ``btlog.events.CHANGE``, looked up, not built) to the
+executor's list, and the executor hands the list over with the batch's first ``seq``,
+its tick and its time (or each change's time, when the clock is not simulated). So
+nothing numbers, times or encodes a change one by one. The recorder keeps the changes
+as they come and each batch as a segment ``(seq, tick, count, t_ns)``; ``on_status``,
+for other callers, adds to the same. ``on_write`` builds one tuple. ``on_tick`` hands
+the buffered rows, once about a thousand have gathered, to the recorder's own thread
+(``btlog.record.background``), which encodes them as one ``/btlog/events`` message of
+binary columns (``btlog.record.columns``: the seq, time and tick columns come from the
+segments, the others from the packed changes) and does the MCAP writer's work — adding
+messages, compressing and writing chunks — in the order it was asked for. Grouping
+changes nothing for a reader: every row keeps its own ``seq``, ``t_ns`` and ``tick``.
 
 Crash safety comes from flushing by wall time: a tick flushes (the MCAP writer's chunk is
 closed and flushed to the file) when the *next* tick, expected as far away as the last
@@ -39,7 +44,7 @@ from mcap.well_known import SchemaEncoding
 from mcap.writer import CompressionType, Writer
 
 import btlog
-from btlog.events import Subscriber, TickRecord, TreeMutation
+from btlog.events import Subscriber, TickRecord, TreeMutation, change_rows
 from btlog.record import columns
 from btlog.record import format as fmt
 from btlog.record.background import BackgroundWriter
@@ -61,8 +66,6 @@ XML_MEDIA_TYPE = "application/xml"
 _EPOCH = datetime(1970, 1, 1, tzinfo=UTC)
 _INT_MIN = -(2**63)
 _INT_LIMIT = 2**64
-#: Fields of a status change in the status buffer.
-_FIELDS = 6
 #: Bytes a write row takes in a message, about: for the chunk size only.
 _WRITE_BYTES = 64
 
@@ -172,7 +175,11 @@ class Recorder(Subscriber):
         self.event_count = 0
         self.last_seq: int | None = None
         self._closed = False
-        self._status_fields: list = []  # six fields per change, flat
+        self._changes: list[bytes] = []  # packed (btlog.events.CHANGE)
+        self._times: list[int] = []  # the times of changes in untimed segments
+        self._segments: list = []  # seq, tick, count, t_ns (None: see _times), flat
+        #: packed changes by uid, for ``on_status`` (``btlog.events.change_rows``)
+        self._rows_by_uid: dict[int, tuple[tuple[bytes, ...], ...]] = {}
         self._write_rows: list[tuple] = []
         self._tick_rows: list[tuple] = []
         self._file = open(self.path, "wb")  # noqa: SIM115
@@ -188,7 +195,7 @@ class Recorder(Subscriber):
         self._background = BackgroundWriter(self._writer)
         self._last_flush = self._last_tick_at = time.monotonic()
         if type(self).on_status is Recorder.on_status:  # a subclass's override wins
-            self.on_status = self._status_appender()  # type: ignore[method-assign,assignment]
+            self.on_status = self._status_appender()  # type: ignore[method-assign]
 
     def _start(self, tree: Tree, attachments: Iterable[tuple[str, bytes]]) -> dict[str, int]:
         writer = self._writer
@@ -215,45 +222,60 @@ class Recorder(Subscriber):
         return channels
 
     # -- the hot path -----------------------------------------------------------------
+    def takes_status_batches(self) -> bool:
+        """True unless the buffer is bounded (``max_tick_events``: each change must be
+        counted as it comes) or a subclass overrides ``on_status``."""
+        return self.max_tick_events is None and type(self).on_status is Recorder.on_status
+
+    def on_status_batch(
+        self, seq: int, tick: int, t_ns: int, changes: list[bytes], times: list[int] | None
+    ) -> None:
+        """Buffer a batch of status changes (see ``Subscriber.on_status_batch``)."""
+        self._changes.extend(changes)
+        if times is None:
+            self._segments.extend((seq, tick, len(changes), t_ns))
+        else:
+            self._times.extend(times)
+            self._segments.extend((seq, tick, len(changes), None))
+
     def on_status(
         self, seq: int, t_ns: int, tick: int, uid: int, prev: Status, status: Status
     ) -> None:
-        """Buffer a status change (replaced per instance by ``_status_appender``)."""
-        fields = self._status_fields
-        fields.extend((seq, t_ns, tick, uid, prev, status))
-        if self.max_tick_events is not None and len(fields) > self.max_tick_events * _FIELDS:
-            self._overflow()
-
-    def status_buffer(self) -> list | None:
-        """The status buffer, for the executor to extend directly; None when the buffer is
-        bounded (``max_tick_events``) or a subclass overrides ``on_status``."""
-        if self.max_tick_events is not None or type(self).on_status is not Recorder.on_status:
-            return None
-        return self._status_fields
+        """Buffer a status change, one call a change (an importer's way; replaced per
+        instance by ``_status_appender``, the same without attribute look-ups)."""
+        self._status_appender()(seq, t_ns, tick, uid, prev, status)
 
     def _status_appender(self) -> Callable[[int, int, int, int, Status, Status], None]:
-        """``on_status`` as a closure over the buffer: no attribute look-up per event,
-        which is most of what a method would cost beyond the ``extend`` itself."""
-        fields = self._status_fields
-        extend, limit = fields.extend, self.max_tick_events
-        overflow = self._overflow
-        bound = (limit or 0) * _FIELDS  # used only when there is a limit
+        """``on_status`` as a closure over the buffers: the change is looked up (packed
+        once per uid and pair of statuses), and the last segment grows when the change
+        is the next seq of the same tick."""
+        add_change, add_time = self._changes.append, self._times.append
+        segments, rows_by_uid = self._segments, self._rows_by_uid
+        limit, overflow, changes = self.max_tick_events, self._overflow, self._changes
 
         def on_status(
             seq: int, t_ns: int, tick: int, uid: int, prev: Status, status: Status
         ) -> None:
-            extend((seq, t_ns, tick, uid, prev, status))
-
-        def on_status_bounded(
-            seq: int, t_ns: int, tick: int, uid: int, prev: Status, status: Status
-        ) -> None:
-            extend((seq, t_ns, tick, uid, prev, status))
-            if len(fields) > bound:
+            try:
+                rows = rows_by_uid[uid]
+            except KeyError:
+                rows = rows_by_uid[uid] = change_rows(uid)
+            add_change(rows[prev][status])
+            add_time(t_ns)
+            if (
+                segments
+                and segments[-1] is None
+                and segments[-4] + segments[-2] == seq
+                and segments[-3] == tick
+            ):
+                segments[-2] += 1
+            else:
+                segments.extend((seq, tick, 1, None))
+            if limit is not None and len(changes) > limit:
                 overflow()
 
-        appender = on_status if limit is None else on_status_bounded
-        appender.__doc__ = Recorder.on_status.__doc__
-        return appender
+        on_status.__doc__ = Recorder.on_status.__doc__
+        return on_status
 
     def on_write(
         self,
@@ -275,7 +297,9 @@ class Recorder(Subscriber):
     def _overflow(self) -> None:
         """A long tick: write its events so far, and flush if the interval has passed."""
         if self._closed:  # events after close are dropped, not kept
-            self._status_fields.clear()
+            self._changes.clear()
+            self._times.clear()
+            self._segments.clear()
             self._write_rows.clear()
             return
         self._write_events()
@@ -303,7 +327,7 @@ class Recorder(Subscriber):
             )
             return
         self._tick_rows.append(row)
-        if len(self._status_fields) // _FIELDS + len(self._write_rows) >= self.group_events:
+        if len(self._changes) + len(self._write_rows) >= self.group_events:
             self._write_events(tick)
             self._write_ticks()
             self._end_chunk_if_full()
@@ -395,23 +419,36 @@ class Recorder(Subscriber):
     def _write_events(self, tick: int | None = None) -> None:
         """One ``/btlog/events`` message with the buffered rows (``tick`` defaults to the
         last row's), encoded on the writer's thread."""
-        fields, writes = self._status_fields, self._write_rows
-        if not fields and not writes:
+        changes, times, segments = self._changes, self._times, self._segments
+        writes = self._write_rows
+        if not changes and not writes:
             return
-        last = (fields[-6], fields[-5], fields[-4]) if fields else writes[-1]
-        if fields and writes and writes[-1][0] > last[0]:
+        if changes:  # the last change's seq, t_ns, tick
+            first, last_tick, count, t_ns = segments[-4:]
+            last = (first + count - 1, times[-1] if t_ns is None else t_ns, last_tick)
+            if writes and writes[-1][0] > last[0]:
+                last = writes[-1]
+        else:
             last = writes[-1]
-        count = len(fields) // _FIELDS
+        rows = len(changes)
         self._add_columns(
             fmt.EVENTS_TOPIC,
             last[1],
             columns.pack_events,
-            (last[2] if tick is None else tick, fields.copy(), writes.copy()),
-            columns.HEAD.size + count * columns.EVENT_ROW_BYTES + len(writes) * _WRITE_BYTES,
+            (
+                last[2] if tick is None else tick,
+                segments.copy(),
+                changes.copy(),
+                times.copy(),
+                writes.copy(),
+            ),
+            columns.HEAD.size + rows * columns.EVENT_ROW_BYTES + len(writes) * _WRITE_BYTES,
         )
-        self.event_count += count + len(writes)
+        self.event_count += rows + len(writes)
         self.last_seq = last[0]
-        fields.clear()
+        changes.clear()
+        times.clear()
+        segments.clear()
         writes.clear()
 
     def _write_ticks(self) -> None:
