@@ -195,7 +195,7 @@ class Recorder(Subscriber):
         self._background = BackgroundWriter(self._writer)
         self._last_flush = self._last_tick_at = time.monotonic()
         if type(self).on_status is Recorder.on_status:  # a subclass's override wins
-            self.on_status = self._status_appender()  # type: ignore[method-assign]
+            self.on_status = self._status_appender()  # type: ignore[method-assign,assignment]
 
     def _start(self, tree: Tree, attachments: Iterable[tuple[str, bytes]]) -> dict[str, int]:
         writer = self._writer
