@@ -145,6 +145,39 @@ class Subscriber:
         """The run is over (or stopped); flush what is buffered."""
 
 
+class StatusBatch:
+    """Status changes a source has made but not numbered yet, for the one subscriber that
+    takes them in batches (``Subscriber.takes_status_batches``).
+
+    The source appends each change to ``changes`` as a packed ``CHANGE`` it looks up
+    (``change_rows``), and its time to ``times`` unless the batch is untimed (every
+    change at the time ``hand_over`` is given: a simulated clock's). It calls
+    ``hand_over`` before anything else takes a seq and before the tick or that time
+    changes, so the numbers are those of execution order.
+    """
+
+    __slots__ = ("changes", "taker", "times")
+
+    def __init__(self, taker: Subscriber, timed: bool) -> None:
+        self.taker = taker
+        self.changes: list[bytes] = []
+        self.times: list[int] | None = [] if timed else None
+
+    def hand_over(self, seq: int, tick: int, t_ns: int) -> int:
+        """Give the batch to the taker as changes ``seq``, ``seq + 1``, ... of tick
+        ``tick`` (at ``t_ns`` if untimed), empty it, and return how many there were."""
+        changes, times = self.changes, self.times
+        count = len(changes)
+        if count:
+            try:
+                self.taker.on_status_batch(seq, tick, t_ns, changes, times)
+            finally:
+                changes.clear()
+                if times is not None:
+                    times.clear()
+        return count
+
+
 class EventLog(Subscriber):
     """A subscriber that keeps every event and tick as records, in order."""
 

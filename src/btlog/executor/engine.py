@@ -12,7 +12,15 @@ from __future__ import annotations
 from collections.abc import Callable
 from typing import Any
 
-from btlog.events import CHANGE, Subscriber, TickRecord, TreeMutation, change_rows, type_name
+from btlog.events import (
+    CHANGE,
+    StatusBatch,
+    Subscriber,
+    TickRecord,
+    TreeMutation,
+    change_rows,
+    type_name,
+)
 from btlog.executor.actions import ACTIONS
 from btlog.executor.behavior import (
     Behavior,
@@ -63,11 +71,8 @@ class Executor:
         self.runtime = Runtime(clock or SimClock())
         self.leaf_factory = leaf_factory
         self.subscribers: list[Subscriber] = []
-        #: status changes not yet numbered, packed (``CHANGE``), and their times when
-        #: the clock is not simulated (see ``settle``)
-        self._batch: list[bytes] = []
-        self._batch_times: list[int] | None = None
-        self._batch_taker: Subscriber | None = None
+        #: status changes not yet numbered, for a sole subscriber that takes batches
+        self._batch: StatusBatch | None = None
         self.root_board = Blackboard("")
         self.root_board.on_write = self._on_write
         self._initial_writes: list[tuple[Blackboard, str, Any]] = []
@@ -99,7 +104,7 @@ class Executor:
             behavior = cls(node, self.runtime, board)
             behavior.children = [self._build(child, board) for child in node.children]
         behavior.check_ports()
-        if self._batch_taker is not None:  # a subtree inserted while a recorder listens
+        if self._batch is not None:  # a subtree inserted while a recorder listens
             behavior.changes = change_rows(node.uid)
         self.behaviors[node.uid] = behavior
         return behavior
@@ -144,16 +149,15 @@ class Executor:
         subscribers = tuple(self.subscribers)
         runtime = self.runtime
         runtime.append_row = None
-        self._batch_taker = None
+        self._batch = None
         if not subscribers:
             runtime.emit_status = None
             return
         if len(subscribers) == 1 and subscribers[0].takes_status_batches():
-            self._batch_taker = subscribers[0]
             for behavior in self.behaviors.values():
                 if not behavior.changes:
                     behavior.changes = change_rows(behavior.uid)
-            append = runtime.append_row = self._batch_appender()
+            append = runtime.append_row = self._batch_appender(subscribers[0])
 
             def emit_change(uid: int, prev: Status, new: Status) -> None:
                 append(CHANGE.pack(uid, prev, new))
@@ -172,16 +176,16 @@ class Executor:
 
         runtime.emit_status = emit
 
-    def _batch_appender(self) -> Callable[[bytes], None]:
-        """What adds a change to the batch: the list's own ``append`` with a simulated
-        clock, whose time changes only between ticks (``settle`` reads it once for the
-        batch); otherwise a function that also notes the change's time."""
-        batch, clock = self._batch, self.runtime.clock
-        if clock.simulated:
-            self._batch_times = None
-            return batch.append
-        times = self._batch_times = []
-        add, add_time, now = batch.append, times.append, clock.now_ns
+    def _batch_appender(self, taker: Subscriber) -> Callable[[bytes], None]:
+        """Start a batch for ``taker`` and return what adds a change to it: the list's
+        own ``append`` with a simulated clock, whose time changes only between ticks
+        (``settle`` gives it once for the batch); otherwise a function that also notes
+        the change's time."""
+        clock = self.runtime.clock
+        batch = self._batch = StatusBatch(taker, timed=not clock.simulated)
+        if batch.times is None:
+            return batch.changes.append
+        add, add_time, now = batch.changes.append, batch.times.append, clock.now_ns
 
         def append_timed(change: bytes) -> None:
             add(change)
@@ -197,19 +201,11 @@ class Executor:
         and before the tick or a simulated clock's time changes (``tick`` settles before
         ``start_tick``), so the numbers and times are those of execution order."""
         batch = self._batch
-        if batch:
+        if batch is not None and batch.changes:
             runtime = self.runtime
             seq = runtime.seq
-            runtime.seq = seq + len(batch)
-            times = self._batch_times
-            taker = self._batch_taker
-            try:
-                if taker is not None:
-                    taker.on_status_batch(seq, runtime.tick, runtime.clock.t_ns, batch, times)
-            finally:
-                batch.clear()
-                if times is not None:
-                    times.clear()
+            runtime.seq = seq + len(batch.changes)
+            batch.hand_over(seq, runtime.tick, runtime.clock.t_ns)
 
     def _on_write(self, scope: str, key: str, value: Any, writer: int | None) -> None:
         if not self.subscribers:
@@ -241,7 +237,7 @@ class Executor:
             self.begin()
         runtime, root = self.runtime, self.root
         clock = runtime.clock
-        if self._batch:  # changes made between ticks (a halt) belong to the last tick
+        if self._batch is not None:  # changes made between ticks (a halt): the last tick's
             self.settle()
         tick = runtime.tick = runtime.tick + 1
         clock.start_tick(tick)
@@ -255,7 +251,7 @@ class Executor:
         self.last_status = status
         subscribers = self.subscribers
         if subscribers:
-            if self._batch:
+            if self._batch is not None:
                 self.settle()
             record = _tick_record((tick, start, clock.t_ns, status, False))
             for subscriber in subscribers:

@@ -33,7 +33,7 @@ from datetime import UTC, datetime
 from pathlib import Path
 from typing import Any
 
-from btlog.events import Subscriber, TickRecord, type_name
+from btlog.events import StatusBatch, Subscriber, TickRecord, change_rows, type_name
 from btlog.record.recorder import Recorder
 from btlog.status import FAILURE, IDLE, RUNNING, SUCCESS, Status
 from btlog.tree.model import Tree
@@ -137,10 +137,23 @@ class RecordingBuilder:
         }
         self.recorder = Recorder(output, tree, record, attachments, flush_interval=flush_interval)
         self._subscribers: list[Subscriber] = [self.recorder, *subscribers]
+        #: transitions not yet numbered, while the recorder is the only subscriber (as
+        #: the executor batches them: ``btlog.events.StatusBatch``)
+        self._batch: StatusBatch | None = None
+        self._rows = {uid: change_rows(uid) for uid in tree.nodes}
+        if not self._subscribers[1:] and self.recorder.takes_status_batches():
+            self._batch = StatusBatch(self.recorder, timed=True)
 
     def subscribe(self, subscriber: Subscriber) -> None:
         """Deliver every later event and tick to ``subscriber`` too."""
+        self._settle()
+        self._batch = None
         self._subscribers.append(subscriber)
+
+    def _settle(self) -> None:
+        """Number the batched transitions and hand them to the recorder."""
+        if self._batch is not None:
+            self._seq += self._batch.hand_over(self._seq, self._tick, self._last_t)
 
     @property
     def tick(self) -> int:
@@ -155,6 +168,7 @@ class RecordingBuilder:
     @property
     def seq(self) -> int:
         """The number of events so far (the next event's seq)."""
+        self._settle()
         return self._seq
 
     def status_of(self, uid: int) -> Status:
@@ -175,9 +189,14 @@ class RecordingBuilder:
         self._status[uid] = status
         if uid == self._root:
             self._root_changed(status)
-        for subscriber in self._subscribers:
-            subscriber.on_status(self._seq, t_ns, self._tick, uid, old, status)
-        self._seq += 1
+        batch = self._batch
+        if batch is not None:
+            batch.changes.append(self._rows[uid][old][status])
+            batch.times.append(t_ns)  # type: ignore[union-attr]
+        else:
+            for subscriber in self._subscribers:
+                subscriber.on_status(self._seq, t_ns, self._tick, uid, old, status)
+            self._seq += 1
         self._transitions += 1
         self._last_t = self._last_transition_t = t_ns
 
@@ -193,6 +212,7 @@ class RecordingBuilder:
         """Entry ``key`` of ``scope`` was set to ``value`` at ``t_ns`` (in the current tick)."""
         t_ns = self._clamp(t_ns)
         label = type_label or type_name(value)
+        self._settle()
         for subscriber in self._subscribers:
             subscriber.on_write(self._seq, t_ns, self._tick, scope, key, value, label, writer_uid)
         self._seq += 1
@@ -201,12 +221,14 @@ class RecordingBuilder:
 
     def flush(self) -> None:
         """Write what is buffered to the file now."""
+        self._settle()
         self.recorder.flush()
 
     def close(self) -> BuildResult:
         """Finish the file (the last tick's record included)."""
         if self._tick > 0:
             self._end_tick()
+        self._settle()
         if self._clamped:
             self.warnings.append(
                 f"{self._clamped} transitions were stamped earlier than the one before them; "
@@ -256,6 +278,7 @@ class RecordingBuilder:
         return t_ns - self._last_transition_t > self.tick_gap_ns
 
     def _next_tick(self, t_ns: int) -> None:
+        self._settle()
         if self._tick > 0:
             self._end_tick()
         self._tick += 1
@@ -265,6 +288,7 @@ class RecordingBuilder:
         self._tick_result = self._status[self._root]
 
     def _end_tick(self) -> None:
+        self._settle()
         end = self._last_transition_t
         record = TickRecord(self._tick, self._tick_start, end, self._tick_result)
         for subscriber in self._subscribers:
