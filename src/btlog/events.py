@@ -167,6 +167,9 @@ class StatusBatch:
         """Give the batch to the taker as changes ``seq``, ``seq + 1``, ... of tick
         ``tick`` (at ``t_ns`` if untimed), empty it, and return how many there were."""
         changes, times = self.changes, self.times
+        if times is not None and len(times) != len(changes):
+            # an interrupt (Ctrl-C) fell between a change and its time: drop the half
+            del changes[len(times) :], times[len(changes) :]
         count = len(changes)
         if count:
             try:
