@@ -174,6 +174,11 @@ ATTACH_COMMAND = [sys.executable, "-m", "btlog.cli.main", "attach"]
 ATTACH_ENV = {**os.environ, "PYTHONPATH": str(ROOT / "src"), "NO_COLOR": "1"}
 
 
+def _interruptible() -> None:
+    """In the child before ``exec``: SIGINT's default action, whatever the test's own."""
+    signal.signal(signal.SIGINT, signal.SIG_DFL)
+
+
 def test_attach_cli_answers_live_and_records_blackboard_changes(tmp_path: Path) -> None:
     def attempt(folder: Path) -> None:
         port = _free_port_pair()
@@ -195,6 +200,9 @@ def test_attach_cli_answers_live_and_records_blackboard_changes(tmp_path: Path) 
                     stdout=subprocess.PIPE,
                     stderr=subprocess.PIPE,
                     text=True,
+                    # a shell without job control starts background jobs with SIGINT
+                    # ignored, and a child keeps that: Ctrl-C must reach btlog here
+                    preexec_fn=_interruptible,
                 )
                 assert proc.stdout is not None
                 assert proc.stdout.readline().startswith("attached to")
