@@ -12,7 +12,10 @@ stamped with ``t_ns`` since the run started and the ``tick`` they happened in:
 read model in DuckDB, the answers to questions — is a projection folded from these.
 
 The executor delivers events to a ``Subscriber`` as positional fields (no object per
-event on the hot path); ``EventLog`` is a subscriber that keeps them as records.
+event on the hot path); ``EventLog`` is a subscriber that keeps them as records. A sole
+subscriber that buffers status changes, such as the recorder, may take them in batches
+instead (``StatusBatch``): the nodes append their own packed ``CHANGE`` without a seq or
+a time, and the source numbers the lot at once before any other event.
 """
 
 from __future__ import annotations
