@@ -30,6 +30,9 @@ time btlog with a recorder subscribed::
     executor.subscribe(recorder)
     rate = time_ticks(executor.tick, 3.0)
 
+With full recording it also prints the CPU time a tick of the run's thread and of the
+recorder's own thread (which packs, compresses and writes), over all rounds.
+
 It prints figures; it asserts nothing.
 """
 
@@ -211,11 +214,17 @@ def main(argv: list[str] | None = None) -> int:
         if btcpp is not None:
             contenders["BT.CPP (behaviortreepy)"] = btcpp[1].tick_once
         rates = dict.fromkeys(contenders, 0.0)
+        run_cpu = 0.0  # the run's thread, while the recorded tree ticks
         for _ in range(rounds):
             for name, tick in contenders.items():
+                started = time.thread_time()
                 rates[name] = max(rates[name], time_ticks(tick, seconds / rounds))
+                if name == "btlog + full recording":
+                    run_cpu += time.thread_time() - started
+        recorded_ticks = max(recorded.runtime.tick, 1)
+        writer_cpu = recorder.writer_cpu_seconds
         recorder.close()
-        events_per_tick = recorded.seq / max(recorded.runtime.tick, 1)
+        events_per_tick = recorded.seq / recorded_ticks
 
     width = max(len(name) for name in rates)
     for name, rate in rates.items():
@@ -239,6 +248,11 @@ def main(argv: list[str] | None = None) -> int:
         f"{'met' if recording_ratio >= RECORDING_TARGET_RATIO else 'NOT met'}; "
         f"{events_per_tick:.0f} events/tick, "
         f"{rates['btlog + full recording'] * events_per_tick:,.0f} events/s recorded)"
+    )
+    writer = "n/a" if writer_cpu is None else f"{writer_cpu / recorded_ticks * 1e6:.1f} µs"
+    print(
+        f"btlog with full recording, CPU a tick (all rounds): run's thread "
+        f"{run_cpu / recorded_ticks * 1e6:.1f} µs, recorder's thread {writer}"
     )
     if btcpp is not None:
         print(f"btlog / BT.CPP: {rates['btlog'] / rates['BT.CPP (behaviortreepy)']:.3f}x")

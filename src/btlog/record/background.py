@@ -14,6 +14,7 @@ from __future__ import annotations
 
 import queue
 import threading
+import time
 from collections.abc import Callable
 from typing import Any
 
@@ -93,6 +94,19 @@ class BackgroundWriter:
             self._calls.put(None)
             self._thread.join()
         self._raise()
+
+    @property
+    def cpu_seconds(self) -> float | None:
+        """The CPU time the writer's thread has used so far (None where the platform
+        cannot tell, or once the thread has ended): what recording costs beyond the
+        run's own thread."""
+        ident = self._thread.ident
+        if ident is None or not self._thread.is_alive():
+            return None
+        try:
+            return time.clock_gettime(time.pthread_getcpuclockid(ident))
+        except (AttributeError, OSError):  # no per-thread CPU clocks here
+            return None
 
     @property
     def running(self) -> bool:

@@ -398,6 +398,12 @@ class Recorder(Subscriber):
                 self._file.close()
 
     @property
+    def writer_cpu_seconds(self) -> float | None:
+        """The CPU time the recorder's own thread has used so far (None where the
+        platform cannot tell, or once closed)."""
+        return self._background.cpu_seconds
+
+    @property
     def closed(self) -> bool:
         """True once the file is finished."""
         return self._closed
