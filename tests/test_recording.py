@@ -703,3 +703,17 @@ def test_an_error_of_the_writer_thread_reaches_the_run_once(tmp_path):
     writer.wait()
     writer.stop()
     assert not writer.running
+
+
+def test_the_recorders_own_thread_reports_its_cpu_time(tmp_path):
+    """What recording costs beyond the run's thread is measurable (``bench_tick.py``)."""
+    executor = Executor(load_tree_text(SMALL_TREE), clock=SimClock(0.01))
+    recorder = Recorder(tmp_path / "cpu.mcap", executor.tree, METADATA)
+    executor.subscribe(recorder)
+    for _ in range(50):
+        executor.tick()
+    recorder.flush()  # the writer thread has packed and written something by now
+    used = recorder.writer_cpu_seconds
+    assert used is not None and 0 < used < 60
+    executor.close()
+    assert recorder.writer_cpu_seconds is None  # the thread has ended
