@@ -30,7 +30,14 @@ from mcap.writer import CompressionType, Writer
 
 import btlog
 from btlog.domains.outcomes import Outcomes, scripted_leaf_factory
-from btlog.events import BlackboardWrite, EventLog, StatusChange, TreeMutation
+from btlog.events import (
+    BlackboardWrite,
+    EventLog,
+    StatusBatch,
+    StatusChange,
+    TreeMutation,
+    change_rows,
+)
 from btlog.executor.actions import SyncAction
 from btlog.executor.clock import SimClock, WallClock
 from btlog.executor.engine import Executor
@@ -717,3 +724,17 @@ def test_the_recorders_own_thread_reports_its_cpu_time(tmp_path):
     assert used is not None and 0 < used < 60
     executor.close()
     assert recorder.writer_cpu_seconds is None  # the thread has ended
+
+
+def test_a_change_cut_from_its_time_is_dropped_not_misaligned():
+    """Ctrl-C between a change and its time (a wall clock, an importer): the batch hands
+    over the whole changes only, each with its own time, and counts only those."""
+    seen = EventLog()
+    batch = StatusBatch(seen, timed=True)
+    rows = change_rows(4)
+    batch.changes += [rows[IDLE][RUNNING], rows[RUNNING][SUCCESS]]
+    batch.times.append(1_000)  # the second change's time was never noted
+    assert batch.count() == 1
+    assert batch.hand_over(7, 2, 0) == 1
+    assert seen.events == [StatusChange(7, 1_000, 2, 4, IDLE, RUNNING)]
+    assert batch.changes == [] and batch.times == []

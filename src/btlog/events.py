@@ -166,14 +166,19 @@ class StatusBatch:
         self.changes: list[bytes] = []
         self.times: list[int] | None = [] if timed else None
 
+    def count(self) -> int:
+        """The changes in the batch (a change whose time an interrupt, Ctrl-C, kept from
+        being noted is dropped: the seqs the batch will take)."""
+        changes, times = self.changes, self.times
+        if times is not None and len(times) != len(changes):
+            del changes[len(times) :], times[len(changes) :]
+        return len(changes)
+
     def hand_over(self, seq: int, tick: int, t_ns: int) -> int:
         """Give the batch to the taker as changes ``seq``, ``seq + 1``, ... of tick
         ``tick`` (at ``t_ns`` if untimed), empty it, and return how many there were."""
         changes, times = self.changes, self.times
-        if times is not None and len(times) != len(changes):
-            # an interrupt (Ctrl-C) fell between a change and its time: drop the half
-            del changes[len(times) :], times[len(changes) :]
-        count = len(changes)
+        count = self.count()
         if count:
             try:
                 self.taker.on_status_batch(seq, tick, t_ns, changes, times)

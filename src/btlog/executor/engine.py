@@ -204,7 +204,7 @@ class Executor:
         if batch is not None and batch.changes:
             runtime = self.runtime
             seq = runtime.seq
-            runtime.seq = seq + len(batch.changes)
+            runtime.seq = seq + batch.count()
             batch.hand_over(seq, runtime.tick, runtime.clock.t_ns)
 
     def _on_write(self, scope: str, key: str, value: Any, writer: int | None) -> None:
