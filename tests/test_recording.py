@@ -738,3 +738,32 @@ def test_a_change_cut_from_its_time_is_dropped_not_misaligned():
     assert batch.hand_over(7, 2, 0) == 1
     assert seen.events == [StatusChange(7, 1_000, 2, 4, IDLE, RUNNING)]
     assert batch.changes == [] and batch.times == []
+
+
+def test_subscribers_changing_mid_run_leave_the_recording_whole(tmp_path):
+    """A recorder first alone (batches, one time a tick), then beside another subscriber
+    (one ``on_status`` a change, each with its time), then alone again: the messages mix
+    both kinds of segments, and the recording equals a plain log of the same run."""
+
+    def executor() -> Executor:
+        return Executor(load_tree_text(SMALL_TREE), clock=SimClock(0.01))
+
+    recorded, logged = executor(), executor()
+    recorder = Recorder(tmp_path / "mixed.mcap", recorded.tree, METADATA)
+    recorded.subscribe(recorder)
+    log = EventLog()
+    logged.subscribe(log)
+    beside = EventLog()
+    for tick in range(1, 10):
+        if tick == 4:
+            recorded.subscribe(beside)
+            assert not recorded.runtime.append_row  # one call a change now
+        if tick == 7:
+            recorded.unsubscribe(beside)
+        recorded.tick()
+        logged.tick()
+    recorded.close()
+    logged.close()
+    recording = open_recording(tmp_path / "mixed.mcap")
+    assert recording.events == log.events
+    assert beside.events == [e for e in log.events if 4 <= e.tick <= 6]

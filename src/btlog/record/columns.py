@@ -155,6 +155,21 @@ def pack_events(
     return HEAD.pack(EVENTS_MAGIC, count, len(written), 0, tick) + body + written
 
 
+def add_timed_change(segments: list, seq: int, tick: int) -> None:
+    """Count one change that comes with its own time (``seq`` in ``tick``) in the flat
+    ``segments`` (``seq, tick, count, t_ns``): the last segment grows when it holds
+    changes with their own times and this is its next seq in the same tick."""
+    if (
+        segments
+        and segments[-1] is None
+        and segments[-4] + segments[-2] == seq
+        and segments[-3] == tick
+    ):
+        segments[-2] += 1
+    else:
+        segments += (seq, tick, 1, None)
+
+
 def pack_event_rows(tick: int, rows: list, writes: list) -> bytes:
     """An events message of whole rows ``(seq, t_ns, tick, uid, prev, status)`` (any
     seqs), for writers that have them, such as a conversion."""
@@ -163,10 +178,7 @@ def pack_event_rows(tick: int, rows: list, writes: list) -> bytes:
     for seq, t_ns, row_tick, uid, prev, status in rows:
         changes.append(CHANGE.pack(uid, prev, status))
         times.append(t_ns)
-        if segments and segments[-3] == row_tick and segments[-4] + segments[-2] == seq:
-            segments[-2] += 1
-        else:
-            segments += (seq, row_tick, 1, None)
+        add_timed_change(segments, seq, row_tick)
     return pack_events(tick, segments, changes, times, writes)
 
 

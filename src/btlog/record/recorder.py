@@ -252,6 +252,7 @@ class Recorder(Subscriber):
         add_change, add_time = self._changes.append, self._times.append
         segments, rows_by_uid = self._segments, self._rows_by_uid
         limit, overflow, changes = self.max_tick_events, self._overflow, self._changes
+        add_segment = columns.add_timed_change
 
         def on_status(
             seq: int, t_ns: int, tick: int, uid: int, prev: Status, status: Status
@@ -262,15 +263,7 @@ class Recorder(Subscriber):
                 rows = rows_by_uid[uid] = change_rows(uid)
             add_change(rows[prev][status])
             add_time(t_ns)
-            if (
-                segments
-                and segments[-1] is None
-                and segments[-4] + segments[-2] == seq
-                and segments[-3] == tick
-            ):
-                segments[-2] += 1
-            else:
-                segments.extend((seq, tick, 1, None))
+            add_segment(segments, seq, tick)
             if limit is not None and len(changes) > limit:
                 overflow()
 
