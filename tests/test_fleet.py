@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import json
 import os
 import shutil
 import subprocess
@@ -157,8 +158,6 @@ def test_fleet_command_prints_the_report_and_json(lake, runs):
     assert "pick up passenger" in taxi.stdout
     as_json = btlog("fleet", str(lake), "--domain", "kitting", "--json")
     assert as_json.returncode == 0
-    import json
-
     assert json.loads(as_json.stdout)["runs"] == 6
 
 
@@ -234,8 +233,6 @@ def test_a_run_whose_export_stopped_before_its_runs_file_is_left_out(lake, runs,
     (partial / "runs/domain=kitting").mkdir(exist_ok=True)
     done = btlog("fleet", str(partial), "--compact", "--json")
     assert done.returncode == 0, done.stderr
-    import json
-
     assert json.loads(done.stdout) == duckdb_report(str(lake)).to_json()
     assert not list(partial.glob("*/*/*/run-*.parquet"))
 
@@ -296,8 +293,6 @@ def test_spark_job_gives_the_same_report_as_duckdb(lake):
         timeout=300,
     )
     assert done.returncode == 0, done.stderr[-2000:]
-    import json
-
     assert json.loads(done.stdout) == duckdb_report(str(lake)).to_json()
 
 
@@ -353,8 +348,6 @@ def test_compaction_and_readers_wait_for_each_other(lake, tmp_path, held, comman
             waiting.wait(timeout=3)  # the other side holds the lock
     out, err = waiting.communicate(timeout=60)
     assert waiting.returncode == 0, err
-    import json
-
     assert json.loads(out) == duckdb_report(str(lake)).to_json()
 
 
