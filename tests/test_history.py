@@ -117,7 +117,7 @@ def test_what_will_you_do_next_kitting(tmp_path: Path, tree_file: Path) -> None:
     [
         ("what's next", "After I move right, I will move right."),
         ("Why haven't you dropped off passenger?", 'Sorry. I don\'t know "dropped off passenger".'),
-        ("Why did you not drop off passenger?", "I have not drop off passenger yet."),
+        ("Why did you not drop off passenger?", "I have not started to drop off passenger yet."),
         ("When did navigate to passenger start?", "navigate to passenger last started at 0.000 s."),
         ("How long has move right been running?", "move right has been running for 0.250 s."),
     ],
@@ -182,12 +182,12 @@ def test_story_of_a_run_with_retries_and_a_fallback(tmp_path: Path) -> None:
     assert lines[0].startswith("Goal: build a gearbox kit. Outcome: SUCCESS after ")
     assert lines[1] == "Failures: 2."
     assert lines[2].endswith(": I could not insert large gear because look at chuck failed.")
-    assert lines[3] == "    fell back to reset arm; no alternative left; retried (attempt 2 of 3)."
+    assert lines[3] == "    fell back to reset arm; no alternative left; retried (attempt 1 of 2)."
     assert lines[4].endswith(
         ": I am retrying for attempt 1 to go insert large gear. "
         "I could not insert large gear because look at chuck failed."
     )
-    assert lines[5] == "    fell back to reset arm; no alternative left; retried (attempt 3 of 3)."
+    assert lines[5] == "    fell back to reset arm; no alternative left; retried (attempt 2 of 2)."
     assert lines[6] == "Subgoals:"
     assert [line.split(":")[0].strip() for line in lines[7:]] == [
         "go insert large gear",

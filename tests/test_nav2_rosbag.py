@@ -148,7 +148,7 @@ def test_a_nav2_bag_imports_one_recording_per_goal(tmp_path: Path) -> None:
     assert "Nav2 publishes /behavior_tree_log only while" in incomplete.metadata["incomplete"]
     assert "incomplete" not in open_recording(goal1).metadata
     explained = btlog("explain", str(goal1), "--at", "2.2s")
-    assert "I could not FollowPath because FollowPath failed." in explained.stdout
+    assert "I could not follow path because follow path failed." in explained.stdout
     assert "Note:" not in explained.stdout
     explained = btlog("explain", str(goal2), "--at", "end")
     assert "Note: the bag ends before this goal's result" in explained.stdout

@@ -77,10 +77,10 @@ def test_follow_path_failing_once_clears_the_local_costmap(kind: str, tmp_path: 
     assert result.final_status is SUCCESS
     answers = [a.text for _, a, _ in result.answers]
     assert answers == [
-        "I ClearLocalCostmap-Context.",
-        "I could not FollowPath because FollowPath failed.",
-        "I am retrying for attempt 1 to FollowPath. "
-        "I could not FollowPath because FollowPath failed.",
+        "I clear local costmap context.",
+        "I could not follow path because follow path failed.",
+        "I am retrying for attempt 1 to follow path. "
+        "I could not follow path because follow path failed.",
     ]
 
 
@@ -126,8 +126,8 @@ def test_a_nav2_user_asks_why_the_local_costmap_was_cleared(tmp_path: Path) -> N
     explained = btlog("explain", str(out), "--at", "2.2s", "--json")
     assert explained.returncode == 0, explained.stderr
     answers = {a["intent"]: a["answer"] for a in json.loads(explained.stdout)["answers"]}
-    assert answers["doing"] == "I ClearLocalCostmap-Context."
-    assert answers["wrong"] == "I could not FollowPath because FollowPath failed."
+    assert answers["doing"] == "I clear local costmap context."
+    assert answers["wrong"] == "I could not follow path because follow path failed."
 
 
 def test_state_counts_recovery_attempts_of_the_first_child_only(tmp_path: Path) -> None:
@@ -155,7 +155,7 @@ def test_a_nodes_model_makes_nav2_conditions_conditions(kind: str, tmp_path: Pat
     result = execute(config, tmp_path / "run.mcap")
     assert result.final_status is SUCCESS
     assert [a.text for _, a, _ in result.answers] == [
-        "I could not FollowPath because FollowPath failed."
+        "I could not follow path because follow path failed."
     ]
     recording = open_recording(result.path)
     conditions = {n.uid: n.type for n in recording.tree if n.kind == "condition"}

@@ -14,8 +14,10 @@ Two implementations give the same answers for the same events:
   ``transitions`` table and its snapshots; never a replay from the start.
 
 The queries: the last/first transition of some nodes to some statuses in a range
-(``starts=True`` keeps only activations, i.e. transitions out of IDLE), all of them in
-order (bounded by ``limit``), and the (tree, state) after a given number of events.
+(``starts=True`` keeps only the starts of activations: see ``resumes``), all of them in
+order (bounded by ``limit``), and the (tree, state) after a given number of events; and
+of blackboard writes, the ones a node made in a range and the last write of one entry
+(what grounds a failure in what the failing node reported or read).
 """
 
 from __future__ import annotations
@@ -49,6 +51,34 @@ class Transition(NamedTuple):
     uid: int
     prev: Status
     status: Status
+
+
+class Write(NamedTuple):
+    """One blackboard write: the entry (scope, key), its value and who wrote it."""
+
+    seq: int
+    t_ns: int
+    scope: str
+    key: str
+    value: Any
+    type_name: str
+    writer: int | None
+
+
+def resumes(before: Transition | None, change: Transition) -> bool:
+    """True when ``change``, out of IDLE, does not start an activation but ends the one
+    ``before`` (the node's own previous change) interrupted: a node that resets itself
+    to IDLE and then returns its result, the two changes one right after the other
+    (Nav2's RecoveryNode halts itself before it returns SUCCESS). Every other change out
+    of IDLE starts an activation. ``btlog.replay.sql_history`` asks the same in SQL."""
+    return (
+        before is not None
+        and change.prev is IDLE
+        and change.status in COMPLETIONS
+        and before.seq == change.seq - 1
+        and before.prev is Status.RUNNING
+        and before.status is IDLE
+    )
 
 
 class Queries:
@@ -97,11 +127,46 @@ class Queries:
 
 class History(Queries):
     """What the explanations may ask about a run's past (see the module docstring): the
-    transition queries of ``Queries`` and the state at an earlier moment."""
+    transition queries of ``Queries``, the blackboard writes, and the state at an
+    earlier moment."""
 
     def state_after(self, count: int) -> tuple[Tree, State]:
         """(tree, state) after the first ``count`` events."""
         raise NotImplementedError
+
+    def writes_by(self, writer: int, lo: int, hi: int, limit: int) -> list[Write]:
+        """The first ``limit`` writes node ``writer`` made in events ``lo <= seq < hi``."""
+        raise NotImplementedError
+
+    def last_write(self, scope: str, key: str, lo: int, hi: int) -> Write | None:
+        """The last write of the entry ``key`` of ``scope`` in events ``lo <= seq < hi``."""
+        raise NotImplementedError
+
+
+class WriteIndex:
+    """Blackboard writes kept in memory by writer and by entry (in seq order)."""
+
+    def __init__(self) -> None:
+        self.by_writer: dict[int | None, list[Write]] = {}
+        self.by_entry: dict[tuple[str, str], list[Write]] = {}
+
+    def add(self, write: Write) -> None:
+        """Keep one more write (seqs increase)."""
+        self.by_writer.setdefault(write.writer, []).append(write)
+        self.by_entry.setdefault((write.scope, write.key), []).append(write)
+
+    def writes_by(self, writer: int, lo: int, hi: int, limit: int) -> list[Write]:
+        """See ``History.writes_by``."""
+        rows = self.by_writer.get(writer, [])
+        start = bisect_left(rows, lo, key=lambda w: w.seq)
+        end = bisect_left(rows, hi, key=lambda w: w.seq)
+        return rows[start : min(end, start + limit)]
+
+    def last_write(self, scope: str, key: str, lo: int, hi: int) -> Write | None:
+        """See ``History.last_write``."""
+        rows = self.by_entry.get((scope, key), [])
+        end = bisect_left(rows, hi, key=lambda w: w.seq)
+        return rows[end - 1] if end and rows[end - 1].seq >= lo else None
 
 
 class TransitionIndex(Queries):
@@ -111,10 +176,14 @@ class TransitionIndex(Queries):
     def __init__(self) -> None:
         self.by_uid: dict[int, list[Transition]] = {}
         self._seqs: dict[int, list[int]] = {}
+        self._resumed: set[int] = set()  # seqs of changes out of IDLE that start nothing
 
     def add(self, row: Transition) -> None:
         """Keep one more transition (seqs increase)."""
-        self.by_uid.setdefault(row.uid, []).append(row)
+        rows = self.by_uid.setdefault(row.uid, [])
+        if row.prev is IDLE and rows and resumes(rows[-1], row):
+            self._resumed.add(row.seq)
+        rows.append(row)
         self._seqs.setdefault(row.uid, []).append(row.seq)
 
     def select(
@@ -122,6 +191,7 @@ class TransitionIndex(Queries):
     ) -> list[Transition] | int:
         """See ``Queries.select``."""
         wanted = set(statuses)
+        resumed = self._resumed
         groups = []
         for uid in set(uids):
             rows = self.by_uid.get(uid)
@@ -129,7 +199,12 @@ class TransitionIndex(Queries):
                 seqs = self._seqs[uid]
                 chosen = rows[bisect_left(seqs, lo) : bisect_left(seqs, hi)]
                 groups.append(
-                    [r for r in chosen if r.status in wanted and (not starts or r.prev is IDLE)]
+                    [
+                        r
+                        for r in chosen
+                        if r.status in wanted
+                        and (not starts or (r.prev is IDLE and r.seq not in resumed))
+                    ]
                 )
         if kind == "count":
             return sum(len(rows) for rows in groups)
@@ -151,6 +226,7 @@ class LiveHistory(StateProjection, TransitionIndex, History):
     def __init__(self, base: Tree, snapshot_every: int = 512) -> None:
         StateProjection.__init__(self, base)
         TransitionIndex.__init__(self)
+        self._writes = WriteIndex()
         self._base = base
         self._every = snapshot_every
         self._events: list[tuple[str, tuple[Any, ...]]] = []
@@ -184,8 +260,9 @@ class LiveHistory(StateProjection, TransitionIndex, History):
     ) -> None:
         """Apply and keep a blackboard write."""
         super().on_write(seq, t_ns, tick, scope, key, value, type_name, writer_uid)
-        event = (seq, t_ns, tick, scope, key, copy.deepcopy(value), type_name, writer_uid)
-        self._keep("write", event)
+        kept = copy.deepcopy(value)
+        self._writes.add(Write(seq, t_ns, scope, key, kept, type_name, writer_uid))
+        self._keep("write", (seq, t_ns, tick, scope, key, kept, type_name, writer_uid))
 
     def on_mutation(self, mutation: TreeMutation) -> None:
         """Apply and keep a change of the tree."""
@@ -194,6 +271,14 @@ class LiveHistory(StateProjection, TransitionIndex, History):
         self._keep("mutation", (mutation,))
 
     # -- the past --------------------------------------------------------------------
+    def writes_by(self, writer: int, lo: int, hi: int, limit: int) -> list[Write]:
+        """See ``History.writes_by``."""
+        return self._writes.writes_by(writer, lo, hi, limit)
+
+    def last_write(self, scope: str, key: str, lo: int, hi: int) -> Write | None:
+        """See ``History.last_write``."""
+        return self._writes.last_write(scope, key, lo, hi)
+
     def state_after(self, count: int) -> tuple[Tree, State]:
         """See ``History.state_after``: the nearest snapshot plus the kept events."""
         if not 0 <= count <= len(self._events):

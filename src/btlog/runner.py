@@ -30,6 +30,7 @@ from btlog.live_questions import LiveQuestion, LiveQuestionError, LiveQuestions
 from btlog.outputs import refuse_overwrite
 from btlog.record.recorder import Recorder
 from btlog.status import Status
+from btlog.tree.descriptions import apply_descriptions, load_descriptions
 from btlog.tree.loader import load_nodes_model, load_tree
 from btlog.tree.model import Tree
 
@@ -57,6 +58,14 @@ class RunConfig:
     realtime: bool = False
     flush_interval: float = 1.0
     nodes_model: str | None = None
+    descriptions_file: str | None = None
+    descriptions: dict[str, str] | None = None
+
+    def load_descriptions(self) -> dict[str, str]:
+        """The descriptions (recorded mapping, or the file's entries; none by default)."""
+        if self.descriptions is not None:
+            return dict(self.descriptions)
+        return load_descriptions(self.descriptions_file) if self.descriptions_file else {}
 
     def load_outcomes(self) -> Outcomes:
         """The outcomes (file or mapping) with the --fail specs and failure rate."""
@@ -94,6 +103,8 @@ class RunConfig:
             "max_ticks": str(self.max_ticks),
             "clock": "wall" if self.realtime else "sim",
             "nodes_model": self.nodes_model or "",
+            "descriptions": json.dumps(self.load_descriptions()),
+            "descriptions_file": self.descriptions_file or "",
             "btlog_version": __version__,
             "schema_version": SCHEMA_VERSION,
         }
@@ -118,6 +129,7 @@ class RunConfig:
             questions=list(loaded("questions", [])),
             realtime=metadata.get("clock") == "wall",
             nodes_model=metadata.get("nodes_model") or None,
+            descriptions=dict(loaded("descriptions", {})),
         )
 
 
@@ -159,6 +171,8 @@ def execute(
     """Run ``config`` and record it; returns where the recording is and how it ended."""
     registry = load_nodes_model(config.nodes_model) if config.nodes_model else None
     tree = load_tree(config.tree, registry)
+    descriptions = config.load_descriptions()
+    undescribed = apply_descriptions(tree, descriptions)
     outcomes = config.load_outcomes()
     outcomes.check_keys(tree)
     try:
@@ -180,7 +194,9 @@ def execute(
     executor = Executor(tree, clock=clock, leaf_factory=domain.leaf_factory(tree, outcomes))
     run_id = uuid.uuid4().hex[:12]
     path = Path(output) if output else default_output(config.tree, run_id)
-    refuse_overwrite(path, [config.tree, *tree.files, config.outcomes_file])
+    refuse_overwrite(
+        path, [config.tree, *tree.files, config.outcomes_file, config.descriptions_file]
+    )
     attachments = [(Path(f).name, Path(f).read_bytes()) for f in tree.files]
     metadata = config.to_metadata(tree, run_id, outcomes)
     recorder = Recorder(path, tree, metadata, attachments, flush_interval=config.flush_interval)
@@ -218,5 +234,8 @@ def execute(
         executor.seq,
         live.answered if live is not None else [],
         live.refused if live is not None else [],
-        outcomes.unapplied(executor.tree, activations),
+        [
+            *outcomes.unapplied(executor.tree, activations),
+            *(f"{config.descriptions_file}: {key!r} names no node" for key in undescribed),
+        ],
     )

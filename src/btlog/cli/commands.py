@@ -56,6 +56,7 @@ def run(args: Namespace) -> int:
         questions=args.ask,
         realtime=args.realtime,
         flush_interval=args.flush_interval,
+        descriptions_file=args.descriptions,
     )
     console = make_console()
 
@@ -131,12 +132,27 @@ def _open_run(path: str) -> tuple[RunDatabase, Run]:
     return database, database.run(path)
 
 
+def _describe(run: Run, descriptions: str | None) -> None:
+    """Apply a descriptions file (``--descriptions``) to a recorded run's tree, over the
+    descriptions it was recorded with; warn about entries that name no node."""
+    if not descriptions:
+        return
+    from btlog.tree.descriptions import apply_descriptions, load_descriptions
+
+    for key in apply_descriptions(run.tree, load_descriptions(descriptions)):
+        print(
+            f"btlog: warning: {safe(descriptions)}: {safe(repr(key))} names no node",
+            file=sys.stderr,
+        )
+
+
 @contextmanager
-def _moment(path: str, moment: str) -> Iterator[tuple]:
+def _moment(path: str, moment: str, descriptions: str | None = None) -> Iterator[tuple]:
     """(run, tree, state, time) at a moment of a recording, while its read model is
-    open."""
+    open; ``descriptions``, a descriptions file, gives its nodes' words."""
     database, run = _open_run(path)
     try:
+        _describe(run, descriptions)
         resolved = run.resolve(moment)
         tree, state = run.state_after(resolved.count)
         yield run, tree, state, resolved.t_ns
@@ -150,11 +166,14 @@ def _moment_json(state: State, moment: str) -> dict:
 
 def ask(args: Namespace) -> int:
     """``btlog ask``: one answer at a moment (Q7 shows the tree it would give)."""
-    with _moment(args.run, args.at) as (run, tree, state, at_ns):
+    with _moment(args.run, args.at, args.descriptions) as (run, tree, state, at_ns):
         result = answer(tree, state, args.question, run.history(), at_ns)
     if args.json:
         _print_json({**result.to_json(), "moment": _moment_json(state, args.at)})
-        return 0
+        return 0 if result.known else EXIT_BAD_INPUT
+    if not result.known:  # as for a question btlog does not understand: bad input
+        print(f"btlog ask: {safe(result.text)}", file=sys.stderr)
+        return EXIT_BAD_INPUT
     print(safe(result.text))
     if result.insertion is not None:
         changed = apply_to_copy(tree, result.insertion, seq=state.seq)
@@ -171,7 +190,7 @@ def explain(args: Namespace) -> int:
     recording says is missing."""
     if args.at is None:
         return _story(args)
-    with _moment(args.run, args.at) as (run, tree, state, _at_ns):
+    with _moment(args.run, args.at, args.descriptions) as (run, tree, state, _at_ns):
         answers = explain_all(tree, state, run.history())
         notes = [run.info.metadata["incomplete"]] if run.info.metadata.get("incomplete") else []
     if args.json:
@@ -194,7 +213,7 @@ def _story(args: Namespace) -> int:
     """``btlog explain REC``: the whole run, top down."""
     from btlog.explain.story import story
 
-    with _moment(args.run, "end") as (run, tree, state, _at_ns):
+    with _moment(args.run, "end", args.descriptions) as (run, tree, state, _at_ns):
         told = story(tree, state, run.history())
         notes = [run.info.metadata["incomplete"]] if run.info.metadata.get("incomplete") else []
     if args.json:

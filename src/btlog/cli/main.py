@@ -46,6 +46,15 @@ def _add_moment(parser: argparse.ArgumentParser, required: bool = True) -> None:
     )
 
 
+def _add_descriptions(parser: argparse.ArgumentParser) -> None:
+    parser.add_argument(
+        "--descriptions",
+        metavar="FILE",
+        help="YAML: node path, name or type -> the words answers use (e.g. "
+        "'ComputePathToPose: plan a path to the goal')",
+    )
+
+
 def build_parser() -> argparse.ArgumentParser:
     """The argument parser of every command."""
     parser = OneLineParser(
@@ -119,6 +128,7 @@ def build_parser() -> argparse.ArgumentParser:
         default=1.0,
         help="seconds between flushes to disk (default 1)",
     )
+    _add_descriptions(run)
     run.add_argument("-o", "--output", metavar="OUT", help="recording file to write")
     run.add_argument("--quiet", action="store_true", help="print only the recording's path")
 
@@ -127,6 +137,7 @@ def build_parser() -> argparse.ArgumentParser:
     _add_moment(ask)
     ask.add_argument("question", metavar="QUESTION")
     ask.add_argument("--json", action="store_true", help="JSON output")
+    _add_descriptions(ask)
 
     explain = commands.add_parser("explain", help="the run's story, or Q1-Q6 at a moment (--at)")
     explain.add_argument("run", metavar="RUN")
@@ -136,6 +147,7 @@ def build_parser() -> argparse.ArgumentParser:
         help="answer Q1-Q6 at this moment (without it: the whole run's story)",
     )
     explain.add_argument("--json", action="store_true", help="JSON output")
+    _add_descriptions(explain)
 
     show = commands.add_parser("show", help="the tree with statuses at a moment")
     show.add_argument("run", metavar="RUN")

@@ -12,6 +12,8 @@ from __future__ import annotations
 from collections.abc import Callable
 from typing import Any
 
+from btlog.tree.model import SUBTREE, Node, blackboard_key
+
 #: Marks a removed entry in the write feed (UnsetBlackboard).
 UNSET = object()
 
@@ -52,6 +54,12 @@ class Blackboard:
             else:
                 return board, key, False
 
+    def locate(self, key: str) -> tuple[str, str, bool]:
+        """The scope and key that hold ``key`` as this board sees it, and whether the
+        entry exists (see ``_resolve``)."""
+        board, resolved, found = self._resolve(key)
+        return board.scope, resolved, found
+
     def exists(self, key: str) -> bool:
         """True when the key resolves to an entry."""
         return self._resolve(key)[2]
@@ -84,6 +92,40 @@ class Blackboard:
     def view(self, writer: int | None) -> BoundBlackboard:
         """This blackboard as a node sees it (writes are reported with the node's uid)."""
         return BoundBlackboard(self, writer)
+
+
+def subtree_remapping(node: Node) -> tuple[dict[str, str], bool, list[tuple[str, str]]]:
+    """How a SubTree node maps its blackboard onto its parent's: the remapped keys
+    (inner → outer), whether it autoremaps, and the ports given literal values (name,
+    value as written), which become the inner board's own entries."""
+    remap: dict[str, str] = {}
+    literals: list[tuple[str, str]] = []
+    for name, port in node.ports.items():
+        key = blackboard_key(port.value)
+        if key == "=" or (key is None and port.value.strip() == "="):
+            remap[name] = name
+        elif key is not None:
+            remap[name] = key
+        else:
+            literals.append((name, port.value))
+    autoremap = node.attributes.get("_autoremap", "false").strip().lower() == "true"
+    return remap, autoremap, literals
+
+
+def board_of(node: Node, entries: dict[str, dict[str, Any]]) -> Blackboard:
+    """The blackboard ``node`` sees, rebuilt from the tree's SubTrees and a run's entries
+    per scope (a ``State``'s ``blackboard``): what a key resolves to at that moment."""
+    board = Blackboard("")
+    board.entries = entries.get("", {})
+    chain = [a for a in node.ancestors() if a.kind == SUBTREE]
+    for subtree in reversed(chain):
+        if subtree.attributes.get("shared_blackboard") == "true" or not subtree.children:
+            continue
+        remap, autoremap, _ = subtree_remapping(subtree)
+        scope = subtree.children[0].scope
+        board = Blackboard(scope, board, remap, autoremap)
+        board.entries = entries.get(scope, {})
+    return board
 
 
 class BoundBlackboard:

@@ -29,14 +29,14 @@ from btlog.executor.behavior import (
     NodeExecutionError,
     Runtime,
 )
-from btlog.executor.blackboard import UNSET, Blackboard
+from btlog.executor.blackboard import UNSET, Blackboard, subtree_remapping
 from btlog.executor.clock import SimClock, WallClock
 from btlog.executor.controls import CONTROLS
 from btlog.executor.decorators import DECORATORS
 from btlog.executor.nav2_controls import NAV2_CONTROLS
 from btlog.executor.nav2_decorators import NAV2_DECORATORS
 from btlog.status import FAILURE, IDLE, RUNNING, SUCCESS, Status
-from btlog.tree.model import SUBTREE, Node, Tree, blackboard_key
+from btlog.tree.model import SUBTREE, Node, Tree
 from btlog.tree.ports import parse_literal
 from btlog.tree.registry import Registry
 
@@ -113,19 +113,10 @@ class Executor:
         if node.attributes.get("shared_blackboard") == "true":
             return parent
         scope = node.children[0].scope
-        remap: dict[str, str] = {}
-        literals: list[tuple[str, Any]] = []
-        for name, port in node.ports.items():
-            key = blackboard_key(port.value)
-            if key == "=" or (key is None and port.value.strip() == "="):
-                remap[name] = name
-            elif key is not None:
-                remap[name] = key
-            else:
-                literals.append((name, parse_literal(port.value)))
-        autoremap = node.attributes.get("_autoremap", "false").strip().lower() == "true"
+        remap, autoremap, literals = subtree_remapping(node)
         board = Blackboard(scope, parent, remap, autoremap)
-        for name, value in literals:
+        for name, written in literals:
+            value = parse_literal(written)
             board.entries[name] = value
             self._initial_writes.append((board, name, value))
         return board

@@ -11,6 +11,13 @@ fallback whose last alternative failed only by design (a clean-up under ForceFai
 like the kitting tree's "reset arm") failed because of the failure it fell back from,
 so the chain follows its first child's failure instead.
 
+**By design.** Not every failure is something gone wrong: a *guard* (a condition that
+fails in front of the branch it guards, before any action of the branch started; see
+``btlog.explain.failure``) is the tree choosing a branch, and a failure *made* from a
+success (a ForceFailure clean-up, an Inverter over a check) is the tree's own doing.
+``by_design`` is that test over the history; the run's story leaves such failures out of
+its episodes and the fleet's causes mark them, so neither blames them for what went wrong.
+
 **What went wrong? (Q6) over the history.** When Algorithm 7 has something to say at
 the moment, that is the answer (word for word the paper's). Otherwise, after the root
 completed with FAILURE: ``I could not {d(root)} because {d(leaf)} failed.`` Otherwise,
@@ -21,34 +28,44 @@ The last such moment is found without a replay. Algorithm 7 speaks only while a
 failure handler (``btlog.explain.handlers``) above the current node, within its
 subgoal, holds a failure of one of its children: a *window* that opens with the child's
 FAILURE and closes when the handler starts again (a fallback) or completes (a retry).
-For each handler, its last window before the moment is read from the history, and in it
-the last moment the current node was inside the handler's branch; Algorithm 7 is then
-run on the state at that moment, which both checks the candidate and gives the words.
-Each handler's last window is looked at (not earlier ones of the same handler).
+For each handler, its last window before the moment that a real failure (not a guard's)
+opened is read from the history, and in it the last moment the current node was inside
+the handler's branch; Algorithm 7 is then run on the state at that moment, which both
+checks the candidate and gives the words. Each handler's last such window is looked at
+(not earlier ones of the same handler).
 """
 
 from __future__ import annotations
 
-from btlog.explain.failure import NOTHING_WRONG, what_went_wrong
+from btlog.explain.failure import NOTHING_WRONG, diagnose
+from btlog.explain.grounds import grounded, grounds
 from btlog.explain.handlers import FallbackHandler, handler_of
 from btlog.explain.hierarchy import current_nodes, per_node
+from btlog.explain.words import goal_words, seconds, words
 from btlog.history import ANY_STATUS, COMPLETIONS, History, Transition
 from btlog.state import State
 from btlog.status import FAILURE, IDLE, RUNNING, SUCCESS
-from btlog.tree.model import SUBTREE, Node, Tree
+from btlog.tree.model import ACTION, SUBTREE, Node, Tree
+
+#: How many earlier failures of one handler's children are looked at for one that was
+#: not a guard's (Q6 over the history).
+GUARD_LOOKBACK = 64
 
 #: Statuses that make a node the current one (resets to IDLE do not).
 ACTIVE = (RUNNING, SUCCESS, FAILURE)
 
 
-def seconds(t_ns: int) -> str:
-    """A time or duration as the commands print it: seconds, millisecond precision."""
-    return f"{t_ns / 1e9:.3f}"
+def algorithm7(tree: Tree, state: State, history: History | None = None) -> str:
+    """Algorithm 7 at the moment ``state``, for every current node; with the run's
+    ``history``, each blamed leaf's failure is grounded (``btlog.explain.grounds``)."""
 
+    def render(node: Node) -> str:
+        text, leaf = diagnose(node, state)
+        if history is None or leaf is None:
+            return text
+        return grounded(text, tree, leaf, state.seq, history)
 
-def algorithm7(tree: Tree, state: State) -> str:
-    """Algorithm 7 at the moment ``state``, for every current node."""
-    return per_node(current_nodes(tree, state), lambda n: what_went_wrong(n, state), NOTHING_WRONG)
+    return per_node(current_nodes(tree, state), render, NOTHING_WRONG)
 
 
 def activation_start(node: Node, before: int, history: History, lo: int = 0) -> int:
@@ -87,11 +104,35 @@ def _original_failure(
     return last if first is None else first
 
 
+def actions_below(node: Node) -> list[int]:
+    """The uids of the action nodes in ``node``'s branch."""
+    return [n.uid for n in node.walk() if n.kind == ACTION]
+
+
+def by_guard(node: Node, failed: Transition, history: History) -> bool:
+    """True when ``node``'s FAILURE ``failed`` was a guard's: no action below it started
+    in the activation that failed (``btlog.explain.failure.failed_by_guard``, read from
+    the history)."""
+    actions = actions_below(node)
+    if not actions:
+        return True
+    began = activation_start(node, failed.seq + 1, history)
+    return history.first(actions, ANY_STATUS, began, failed.seq + 1, starts=True) is None
+
+
+def by_design(tree: Tree, node: Node, failed: Transition, history: History) -> bool:
+    """True when ``node``'s FAILURE ``failed`` is the tree's own doing (see the module
+    docstring): a guard's, or made from a success."""
+    return by_guard(node, failed, history) or cause(tree, node, failed, history).status is SUCCESS
+
+
 def because(tree: Tree, node: Node, completion: Transition, history: History) -> str:
     """``{d(leaf)} failed`` (or ``succeeded``) for the cause of ``completion``."""
     leaf = cause(tree, node, completion, history)
-    verb = "succeeded" if leaf.status is SUCCESS else "failed"
-    return f"{tree.node(leaf.uid).description} {verb}"
+    culprit = tree.node(leaf.uid)
+    if leaf.status is SUCCESS:
+        return f"{words(culprit)} succeeded"
+    return f"{words(culprit)} failed{grounds(tree, culprit, leaf, history)}"
 
 
 def last_completion(node: Node, state: State, history: History) -> Transition | None:
@@ -107,7 +148,7 @@ def root_failure(tree: Tree, state: State, history: History) -> str | None:
     done = last_completion(tree.root, state, history)
     if done is None or done.status is not FAILURE:
         return None
-    return f"I could not {tree.root.description} because {because(tree, tree.root, done, history)}."
+    return f"I could not {goal_words(tree)} because {because(tree, tree.root, done, history)}."
 
 
 def _scope(handler: Node) -> list[int]:
@@ -160,7 +201,7 @@ def earlier_wrong(tree: Tree, state: State, history: History) -> tuple[int, str]
     handlers = [n for n in tree if handler_of(n) is not None]
     windows = []
     for handler in handlers:
-        failed = history.last([c.uid for c in handler.children], (FAILURE,), 0, now)
+        failed = _last_real_failure(tree, handler, now, history)
         if failed is not None:
             windows.append((failed.seq, handler, failed))
     leaves = [n.uid for n in tree if n.is_execution]
@@ -173,15 +214,30 @@ def earlier_wrong(tree: Tree, state: State, history: History) -> tuple[int, str]
         if moment is None or (best is not None and moment <= best[0]):
             continue
         then_tree, then = history.state_after(moment)
-        text = algorithm7(then_tree, then)
+        text = algorithm7(then_tree, then, history)
         if text != NOTHING_WRONG:
             best = (moment, then.t_ns, text)
     return None if best is None else (best[1], best[2])
 
 
+def _last_real_failure(tree: Tree, handler: Node, now: int, history: History) -> Transition | None:
+    """The last failure of one of ``handler``'s children before event ``now`` that was
+    not a guard's (at most ``GUARD_LOOKBACK`` failures back)."""
+    children = [c.uid for c in handler.children if actions_below(c)]
+    hi = now
+    for _ in range(GUARD_LOOKBACK):
+        failed = history.last(children, (FAILURE,), 0, hi)
+        if failed is None:
+            return None
+        if not by_guard(tree.node(failed.uid), failed, history):
+            return failed
+        hi = failed.seq
+    return None
+
+
 def what_went_wrong_over_history(tree: Tree, state: State, history: History | None) -> str:
     """Q6: Algorithm 7 now; else the root's failure; else Algorithm 7's last answer."""
-    now = algorithm7(tree, state)
+    now = algorithm7(tree, state, history)
     if now != NOTHING_WRONG or history is None:
         return now
     failed = root_failure(tree, state, history)

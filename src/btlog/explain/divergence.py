@@ -17,7 +17,7 @@ from dataclasses import dataclass, replace
 
 from btlog.algorithms.sequence_diff import Comparison, compare
 from btlog.events import StatusChange
-from btlog.explain.hierarchy import subgoal_node
+from btlog.explain.hierarchy import subgoal_of
 from btlog.state import StateProjection
 from btlog.status import FAILURE, IDLE, SKIPPED, SUCCESS
 from btlog.tree.model import Node, Tree
@@ -72,7 +72,7 @@ class ExecutedAction:
 
 def _action(seq: int, node: Node, tree: Tree) -> ExecutedAction:
     """The executed action of ``node`` starting at event ``seq``."""
-    subgoal = subgoal_node(node) or tree.root
+    subgoal = subgoal_of(node, tree)
     parent = node.parent
     return ExecutedAction(
         seq=seq,

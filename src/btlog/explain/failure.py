@@ -1,43 +1,82 @@
 """Failure explanations (the paper's Algorithm 7): what went wrong, and how it was handled.
 
-Walking up from the current node to its subgoal, two kinds of node handle failures:
+Walking up from the current node to its subgoal, two kinds of failure handler
+(``btlog.explain.handlers``) have something to say:
 
-- a Fallback whose first child failed in the Fallback's current activation: it fell
-  back. ``I could not {d(fallback)} because [I was unable to {d(parent)} as] {d(leaf)}
-  failed.`` — the clause in brackets when the failed leaf's parent says something else;
-- a RetryUntilSuccessful that has failed k > 0 times in its current run: ``I am retrying
-  for attempt {k} to {d(named ancestor of the retry)}. I could not {d(named ancestor of
-  the leaf)} because {d(leaf)} failed.``
+- one that **fell back**: a Fallback (or Nav2's RecoveryNode) whose first child failed in
+  its current activation. ``I could not {fallback} because [I was unable to {step} as]
+  {leaf} failed.`` — the clause in brackets names the nearest named node between the
+  leaf and the fallback when it says something else than the fallback;
+- one that **retries**: a RetryUntilSuccessful (or a RecoveryNode retrying its first
+  child) whose child has failed k > 0 times in its current activation. ``I am retrying
+  for attempt {k} to {what}. I could not {step} because {leaf} failed.`` — *what* is the
+  retry's own words when it is named (a user who names a RetryUntilSuccessful "retry
+  grasp" says what it retries), else, as in the paper, its nearest named ancestor;
+  *step* is the nearest named ancestor of the leaf. A named retry is never said to have
+  failed: when nothing named lies between the leaf and it, the answer is ``I am retrying
+  for attempt {k} to {what} because {leaf} failed.``
 
-Nav2's RecoveryNode is both: once its first child failed in its current activation it
-falls back (the Fallback sentence, naming the RecoveryNode), and while its first child
-is retried after a recovery it is retrying (the retry sentence, for the RecoveryNode
-itself, which Nav2 trees name after what it protects).
+When both apply the retry sentence comes first. Unnamed nodes are never spoken of: the
+answer climbs to the nearest named one (``btlog.explain.words``).
 
-When both apply the retry sentence comes first. "The failed leaf" is read from the order
-of events: the execution node inside the failed branch whose FAILURE is the most recent
-since the handler's activation began, so a failure of an earlier attempt is never
-blamed for a later one.
+**The failed leaf** is found down the causal chain, from the failed child: at each node,
+the child whose failure came last before the node's own, down to an execution node — so
+a failure of an earlier attempt, or of another branch, is never blamed.
+
+**Guards are not failures.** A condition that fails in front of the branch it guards is
+the tree choosing a branch, not something going wrong: Nav2's ``GoalUpdated`` first in a
+ReactiveFallback, ``IsGoalNearby`` in the ReactiveSequence that decides whether to
+replan. The rule reads the tree's structure and the run, not names: a handler's child
+failed *by guard* when the leaf of its failure is a condition and no action below the
+child started in that activation. A handler whose child failed by guard has nothing to
+say; the walk goes on up, to a handler that holds a real failure (or to "Nothing went
+wrong."). The same test marks guard failures in the run's story and the fleet's causes
+(``btlog.explain.causes.by_design``).
 """
 
 from __future__ import annotations
 
 from collections.abc import Iterator
 
-from btlog.state import RECOVERY_TYPE, RETRY_TYPE, State
-from btlog.tree.model import SUBTREE, Node
+from btlog.explain.handlers import handler_of
+from btlog.explain.words import is_named, named_ancestor, words
+from btlog.state import State
+from btlog.tree.model import ACTION, CONDITION, DECORATOR, SUBTREE, Node
 
-FALLBACK_TYPES = ("Fallback", "ReactiveFallback", RECOVERY_TYPE)
 NOTHING_WRONG = "Nothing went wrong."
 
 
-def _named_ancestor(node: Node) -> Node | None:
-    return next((a for a in node.ancestors() if a.name), None)
-
-
 def failed_leaf(branch: Node, state: State, since: int) -> Node | None:
-    """The execution node in ``branch`` whose most recent FAILURE (at or after event
-    ``since``) is the latest; any failed node if no execution node failed."""
+    """The execution node whose failure made ``branch`` fail (its last failure at or
+    after event ``since``), down the causal chain; when the chain stops at a node none of
+    whose children failed (an Inverter, a Timeout), the latest failed execution node in
+    ``branch`` since then; None when nothing in ``branch`` failed since ``since``."""
+    node, until = branch, state.last_failure.get(branch.uid)
+    if until is None or until < since:
+        return _latest_failed(branch, state, since)
+    while node.children:
+        failed = [
+            (seq, child)
+            for child in node.children
+            if (seq := state.last_failure.get(child.uid)) is not None and since <= seq <= until
+        ]
+        # A child that failed with no execution node failing below it failed by design
+        # (a ForceFailure clean-up): the real failure is the one it was the alternative to.
+        real = [pair for pair in failed if _has_failed_leaf(pair[1], state, since, pair[0])]
+        if not (real or failed):
+            break
+        until, node = max(real or failed, key=lambda pair: pair[0])
+    return node if node.is_execution else _latest_failed(node, state, since) or node
+
+
+def _has_failed_leaf(branch: Node, state: State, since: int, until: int) -> bool:
+    return any(
+        n.is_execution and since <= state.last_failure.get(n.uid, -1) <= until
+        for n in branch.walk()
+    )
+
+
+def _latest_failed(branch: Node, state: State, since: int) -> Node | None:
     best: tuple[int, int, Node] | None = None
     for node in branch.walk():
         failed = state.last_failure.get(node.uid)
@@ -49,69 +88,130 @@ def failed_leaf(branch: Node, state: State, since: int) -> Node | None:
     return None if best is None else best[2]
 
 
-def _fallback_sentence(fallback: Node, state: State) -> str | None:
+def failed_by_guard(child: Node, state: State) -> bool:
+    """True when ``child``'s last failure was a guard's (see the module docstring): its
+    leaf is a condition and no action below ``child`` started in that activation."""
+    began, failed = state.activation.get(child.uid), state.last_failure.get(child.uid)
+    if began is None or failed is None or failed < began:
+        return False
+    leaf = failed_leaf(child, state, began)
+    if leaf is None or leaf.kind != CONDITION:
+        return False
+    return not any(
+        node.kind == ACTION and began <= state.activation.get(node.uid, -1) <= failed
+        for node in child.walk()
+    )
+
+
+def _clause_node(leaf: Node, handler: Node) -> Node | None:
+    """The nearest named, non-decorator node between ``leaf`` and ``handler``."""
+    for ancestor in leaf.ancestors():
+        if ancestor is handler:
+            return None
+        if is_named(ancestor) and ancestor.kind != DECORATOR:
+            return ancestor
+    return None
+
+
+def _spoken(node: Node) -> Node:
+    """``node`` if it is named, else its nearest named ancestor (or itself at the top)."""
+    return node if is_named(node) else (named_ancestor(node) or node)
+
+
+def _fallback_sentence(fallback: Node, first: Node, state: State) -> tuple[str, Node] | None:
     since = state.activation.get(fallback.uid)
-    first = fallback.children[0] if fallback.children else None
-    if since is None or first is None or not state.failed_since(first.uid, since):
+    if since is None or not state.failed_since(first.uid, since):
+        return None
+    if failed_by_guard(first, state):
         return None
     leaf = failed_leaf(first, state, since) or first
-    text = f"I could not {fallback.description} because "
-    parent = leaf.parent
-    if parent is not None and parent is not fallback and parent.description != fallback.description:
-        text += f"I was unable to {parent.description} as "
-    return text + f"{leaf.description} failed."
+    said = words(_spoken(fallback))
+    text = f"I could not {said} because "
+    step = _clause_node(leaf, fallback)
+    if step is not None and words(step) != said:
+        text += f"I was unable to {words(step)} as "
+    return text + f"{words(leaf)} failed.", leaf
+
+
+def _retry_target(retry: Node) -> Node | None:
+    """What a retry's sentence says it retries for (see the module docstring)."""
+    return retry if is_named(retry) else named_ancestor(retry)
 
 
 def _retry_attempt(retry: Node, state: State) -> str | None:
     attempts = state.retry_attempts.get(retry.uid, 0)
     if attempts <= 0:
         return None
-    target = retry if retry.type == RECOVERY_TYPE else _named_ancestor(retry)
+    handler = handler_of(retry)
+    child = handler.retried(retry) if handler is not None else None
+    if child is not None and (failed_by_guard(child, state) or _recovering(retry, child, state)):
+        return None
+    target = _retry_target(retry)
     if target is None:
         return None
-    return f"I am retrying for attempt {attempts} to {target.description}."
+    return f"I am retrying for attempt {attempts} to {words(target)}."
 
 
-def _retry_sentence(retry: Node, state: State) -> str | None:
+def _recovering(handler: Node, child: Node, state: State) -> bool:
+    """True while a handler that falls back from the child it retries (a RecoveryNode)
+    recovers: it retries only once the recovery is over and the child runs again."""
+    rule = handler_of(handler)
+    if rule is None or rule.falls_back_from(handler) is not child:
+        return False
+    return state.activation.get(child.uid, -1) <= state.last_failure.get(child.uid, -1)
+
+
+def _retry_sentence(retry: Node, state: State) -> tuple[str, Node | None] | None:
     head = _retry_attempt(retry, state)
     if head is None:
         return None
     since = state.activation.get(retry.uid, 0)
-    leaf = failed_leaf(retry, state, since)
+    leaf = failed_leaf(retry.children[0], state, since)
     if leaf is None:
-        return head
-    context = _named_ancestor(leaf)
-    what = context.description if context is not None else leaf.description
-    return f"{head} I could not {what} because {leaf.description} failed."
+        return head, None
+    if is_named(retry):
+        step = _clause_node(leaf, retry)
+        if step is None:
+            return f"{head[:-1]} because {words(leaf)} failed.", leaf
+    else:
+        step = named_ancestor(leaf)
+    what = words(step) if step is not None else words(leaf)
+    return f"{head} I could not {what} because {words(leaf)} failed.", leaf
+
+
+def diagnose(node: Node | None, state: State) -> tuple[str, Node | None]:
+    """Q6 for one current node (Algorithm 7) and the leaf it blames (None when nothing
+    went wrong, or a retry's leaf is unknown)."""
+    if node is None:
+        return NOTHING_WRONG, None
+    child, ancestor = node, node.parent
+    while ancestor is not None and ancestor.kind != SUBTREE:
+        handler = handler_of(ancestor)
+        if handler is not None:
+            first = handler.falls_back_from(ancestor)
+            found = None if first is None else _fallback_sentence(ancestor, first, state)
+            if found is not None:
+                retries = [_retry_attempt(a, state) for a in _retrying(ancestor, child)]
+                return " ".join([*(r for r in retries if r), found[0]]), found[1]
+            if handler.retried(ancestor) is not None and first is None:
+                retried = _retry_sentence(ancestor, state)
+                if retried is not None:
+                    return retried
+        child, ancestor = ancestor, ancestor.parent
+    return NOTHING_WRONG, None
 
 
 def what_went_wrong(node: Node | None, state: State) -> str:
-    """Q6 for one current node (Algorithm 7)."""
-    if node is None:
-        return NOTHING_WRONG
-    child, ancestor = node, node.parent
-    while ancestor is not None and ancestor.kind != SUBTREE:
-        if ancestor.type in FALLBACK_TYPES:
-            sentence = _fallback_sentence(ancestor, state)
-            if sentence is not None:
-                retries = [_retry_attempt(a, state) for a in _retrying(ancestor, child)]
-                return " ".join([*(r for r in retries if r), sentence])
-        elif ancestor.type == RETRY_TYPE:
-            sentence = _retry_sentence(ancestor, state)
-            if sentence is not None:
-                return sentence
-        child, ancestor = ancestor, ancestor.parent
-    return NOTHING_WRONG
+    """Q6 for one current node (Algorithm 7): the text of ``diagnose``."""
+    return diagnose(node, state)[0]
 
 
 def _retrying(node: Node, via: Node) -> Iterator[Node]:
     """The retrying handlers from ``node`` up to the subgoal, reached from ``node``'s child
-    ``via``: every RetryUntilSuccessful, and a RecoveryNode when reached through its
-    first child (the one it retries)."""
+    ``via``: each handler that retries the child it was reached through."""
     current: Node | None = node
     while current is not None and current.kind != SUBTREE:
-        if current.type == RETRY_TYPE or (
-            current.type == RECOVERY_TYPE and current.children[0] is via
-        ):
+        handler = handler_of(current)
+        if handler is not None and handler.retried(current) is via:
             yield current
         via, current = current, current.parent

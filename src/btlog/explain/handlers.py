@@ -14,6 +14,7 @@ from __future__ import annotations
 from dataclasses import dataclass
 from typing import Protocol
 
+from btlog.explain.words import first_named, words
 from btlog.tree.model import Node
 
 RETRIED = "retried"
@@ -24,23 +25,27 @@ PROPAGATED = "propagated"
 @dataclass(frozen=True)
 class Reaction:
     """What a handler did about a child's failure: ``kind`` is ``RETRIED`` (``attempt``
-    of ``attempts``, None when unlimited), ``FELL_BACK`` (to ``target``) or
-    ``PROPAGATED`` (the handler failed too, after ``attempts`` attempts for a retry)."""
+    of ``retries``, None when unlimited), ``FELL_BACK`` (to ``target``) or
+    ``PROPAGATED`` (the handler failed too, after ``retries`` retries for a retry).
+
+    An *attempt* is counted as the paper counts it ("I am retrying for attempt 1"): the
+    k-th retry, after k failures in the handler's current activation; a
+    RetryUntilSuccessful with ``num_attempts="3"`` has 2 retries, attempts 1 and 2."""
 
     kind: str
     target: Node | None = None
     attempt: int | None = None
-    attempts: int | None = None
+    retries: int | None = None
 
     def text(self) -> str:
-        """E.g. ``retried (attempt 2 of 3)``, ``fell back to ask``, ``propagated``."""
+        """E.g. ``retried (attempt 1 of 2)``, ``fell back to ask``, ``propagated``."""
         if self.kind == RETRIED:
-            of = "" if self.attempts is None else f" of {self.attempts}"
+            of = "" if self.retries is None else f" of {self.retries}"
             return f"retried (attempt {self.attempt}{of})"
         if self.kind == FELL_BACK and self.target is not None:
-            return f"fell back to {self.target.description}"
-        if self.attempts is not None:
-            return f"gave up after {self.attempts} attempts"
+            return f"fell back to {words(first_named(self.target))}"
+        if self.retries is not None:
+            return f"gave up after {self.retries} {'retry' if self.retries == 1 else 'retries'}"
         return "no alternative left"
 
 
@@ -50,6 +55,16 @@ class FailureHandler(Protocol):
     #: True when the "something went wrong" of a failure lasts until the handler starts
     #: again (a fallback); False when it ends with the handler's own result (a retry).
     lasts_until_restart: bool
+
+    def falls_back_from(self, node: Node) -> Node | None:
+        """The child whose failure makes ``node`` fall back to another (Algorithm 7's
+        Fallback case), or None when ``node`` never falls back."""
+        ...
+
+    def retried(self, node: Node) -> Node | None:
+        """The child ``node`` ticks again after it failed (Algorithm 7's Retry case), or
+        None when ``node`` does not retry."""
+        ...
 
     def react(self, node: Node, child: Node, failures: int) -> Reaction:
         """``child`` of ``node`` failed, the ``failures``-th time in ``node``'s current
@@ -61,6 +76,14 @@ class FallbackHandler:
     """Fallback, ReactiveFallback: the next child is tried; after the last, it fails."""
 
     lasts_until_restart = True
+
+    def falls_back_from(self, node: Node) -> Node | None:
+        """The first child."""
+        return node.children[0]
+
+    def retried(self, node: Node) -> Node | None:
+        """None: a fallback does not retry."""
+        return None
 
     def react(self, node: Node, child: Node, failures: int) -> Reaction:
         """Fall back to the next child, or propagate after the last one."""
@@ -78,12 +101,21 @@ class RetryHandler:
     def __init__(self, port: str = "num_attempts") -> None:
         self.port = port
 
+    def falls_back_from(self, node: Node) -> Node | None:
+        """None: a retry has nothing to fall back to."""
+        return None
+
+    def retried(self, node: Node) -> Node | None:
+        """Its one child."""
+        return node.children[0]
+
     def react(self, node: Node, child: Node, failures: int) -> Reaction:
         """Retry while attempts are left (-1: forever), else propagate."""
         attempts = attempts_of(node, self.port)
-        if attempts is None or failures < attempts:
-            return Reaction(RETRIED, child, failures + 1, attempts)
-        return Reaction(PROPAGATED, attempts=attempts)
+        retries = None if attempts is None else max(attempts - 1, 0)
+        if retries is None or failures <= retries:
+            return Reaction(RETRIED, child, failures, retries)
+        return Reaction(PROPAGATED, retries=retries)
 
 
 class RecoveryHandler(FallbackHandler):
@@ -91,6 +123,10 @@ class RecoveryHandler(FallbackHandler):
     child), whose success retries the first, ``number_of_retries`` times at most."""
 
     lasts_until_restart = True
+
+    def retried(self, node: Node) -> Node | None:
+        """The first child, retried after a successful recovery."""
+        return node.children[0]
 
     def react(self, node: Node, child: Node, failures: int) -> Reaction:
         """Fall back to the recovery while retries are left, else propagate."""

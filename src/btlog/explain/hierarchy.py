@@ -3,14 +3,27 @@
 The paper frames a tree as semantic sets {goal, subgoals, steps, actions}: the goal is
 the main tree's root, a subgoal is a SubTree, steps are the named, non-decorator nodes
 below a (sub)goal whose names differ from it, and actions are the execution nodes.
-Each function here takes the tree and the current node (see ``current_nodes``) and
-returns the sentence of the paper's templates; ``d(n)`` is ``Node.description``.
+
+Real trees are seldom framed so: Nav2's default trees have no SubTree at all. One rule
+covers both (docs/design.md, "Subgoals"): a node's **subgoal** is its nearest SubTree
+ancestor, as in the paper; where no SubTree is above it, the **goal's step** that holds
+it — the topmost named, non-decorator node between it and the root (Algorithm 5 run from
+the root), the node itself when it is such a step. In Nav2's NavigateToPose tree the
+goal's steps are "navigate with replanning" and "recovery fallback", so clearing the
+local costmap serves the subgoal "navigate with replanning"; in a tree whose root
+Sequence holds "get to kitchen", "retry grasp" (a decorator) and "bring coffee", grasping
+the cup is itself the subgoal "grasp cup". Q3, Q5, the run's story, ``check --rerun``'s
+grouping and "Can you X?" all use this one rule.
+
+Each answer speaks of nodes by their words (``btlog.explain.words``); the current node
+is ``current_nodes``'s.
 """
 
 from __future__ import annotations
 
 from collections.abc import Callable
 
+from btlog.explain.words import goal_words, is_named, words
 from btlog.state import State
 from btlog.status import IDLE, RUNNING
 from btlog.tree.model import DECORATOR, SUBTREE, Node, Tree
@@ -45,14 +58,15 @@ def per_node(nodes: list[Node], render: Callable[[Node], str], empty: str) -> st
 
 def doing(node: Node) -> str:
     """Q1 (Algorithm 1): ``I {d(n)}.``"""
-    return f"I {node.description}."
+    return f"I {words(node)}."
 
 
 def reason_node(node: Node) -> Node | None:
-    """Algorithm 2's p: the nearest non-decorator ancestor with a non-empty name that
-    differs from d(n)."""
+    """Algorithm 2's p: the nearest named non-decorator ancestor whose words differ from
+    the node's."""
+    own = words(node)
     for ancestor in node.ancestors():
-        if ancestor.kind != DECORATOR and ancestor.name and ancestor.name != node.description:
+        if ancestor.kind != DECORATOR and is_named(ancestor) and words(ancestor) != own:
             return ancestor
     return None
 
@@ -61,13 +75,60 @@ def why(node: Node) -> str:
     """Q2 (Algorithm 2): ``I {d(n)} in order to {p}.``"""
     reason = reason_node(node)
     if reason is None:
-        return f"I {node.description} because it is my goal."
-    return f"I {node.description} in order to {reason.description}."
+        return f"I {words(node)} because it is my goal."
+    return f"I {words(node)} in order to {words(reason)}."
+
+
+def _root_of(node: Node) -> Node:
+    while node.parent is not None:
+        node = node.parent
+    return node
+
+
+def _is_step_of(node: Node, target: Node) -> bool:
+    """Algorithm 5's test: a named non-decorator node whose words differ from the
+    (sub)goal's."""
+    return node.kind != DECORATOR and is_named(node) and words(node) != words(target)
 
 
 def subgoal_node(node: Node) -> Node | None:
-    """Algorithm 3's p: the nearest SubTree ancestor."""
-    return next((a for a in node.ancestors() if a.kind == SUBTREE), None)
+    """The node's subgoal (see the module docstring): the nearest SubTree ancestor, else
+    the goal's step holding the node (the node itself when it is one); None for the root
+    and for nodes outside every step."""
+    chain = []
+    for ancestor in node.ancestors():
+        if ancestor.kind == SUBTREE:
+            return ancestor
+        chain.append(ancestor)
+    if not chain:
+        return None
+    root = chain.pop()  # the root is the goal, never a subgoal
+    step = None
+    for candidate in [node, *chain]:
+        if _is_step_of(candidate, root):
+            step = candidate  # the topmost one wins: Algorithm 5 stops there
+    return step
+
+
+def subgoal_of(node: Node, tree: Tree) -> Node:
+    """The node's subgoal, or the goal (the root) when it has none: how behaviours are
+    grouped (``btlog diff``, ``check --rerun``)."""
+    return subgoal_node(node) or tree.root
+
+
+def subgoals(tree: Tree) -> list[Node]:
+    """Every subgoal of the tree, in tree order: its SubTrees, and the goal's steps that
+    hold execution nodes outside every SubTree."""
+    found: dict[int, Node] = {}
+    for node in tree:
+        if node.kind == SUBTREE:
+            found[node.uid] = node
+        elif node.is_execution:
+            step = subgoal_node(node)
+            if step is not None and step.kind != SUBTREE:
+                found[step.uid] = step
+    order = {n.uid: i for i, n in enumerate(tree)}
+    return sorted(found.values(), key=lambda n: order[n.uid])
 
 
 def subgoal(node: Node) -> str:
@@ -75,38 +136,39 @@ def subgoal(node: Node) -> str:
     found = subgoal_node(node)
     if found is None:
         return "Sorry. I don't have a subgoal."
-    return f"My subgoal is to {found.description}."
+    return f"My subgoal is to {words(found)}."
 
 
 def goal(tree: Tree) -> str:
     """Q4 (Algorithm 4): the main tree's root."""
-    return f"My goal is to {tree.root.description}."
+    return f"My goal is to {goal_words(tree)}."
 
 
 def steps(target: Node) -> list[Node]:
     """Algorithm 5: depth-first below ``target``, the first named, non-decorator nodes
-    whose name differs from the target's; their branches are not explored further."""
+    whose words differ from the target's; their branches are not explored further. An
+    execution node is its own one step."""
+    if target.is_execution:
+        return [target]
     found: list[Node] = []
-
-    def visit(node: Node) -> None:
-        if node.kind != DECORATOR and node.name and node.name != target.name:
+    stack = list(reversed(target.children))
+    while stack:
+        node = stack.pop()
+        if _is_step_of(node, target):
             found.append(node)
-            return
-        for child in node.children:
-            visit(child)
-
-    for child in target.children:
-        visit(child)
+        else:
+            stack.extend(reversed(node.children))
     return found
 
 
-def how(target: Node | None, level: str) -> str:
+def how(target: Node | None, level: str, tree: Tree | None = None) -> str:
     """Q5 (Algorithm 6) for ``level`` "goal" or "subgoal"."""
     if target is None:
         return f"Sorry. I don't have a {level}."
     found = steps(target)
     count = len(found)
-    listed = " ".join(f"{i}. {n.description}." for i, n in enumerate(found, 1))
+    listed = " ".join(f"{i}. {words(n)}." for i, n in enumerate(found, 1))
     noun = "step" if count == 1 else "steps"
-    text = f'To achieve the {level} "{target.description}", I need to do {count} {noun}.'
+    name = goal_words(tree) if tree is not None and target is tree.root else words(target)
+    text = f'To achieve the {level} "{name}", I need to do {count} {noun}.'
     return f"{text} {listed}" if listed else text

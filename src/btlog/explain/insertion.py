@@ -4,8 +4,10 @@ A node cannot simply be run again anywhere: its leaves may read blackboard keys 
 other nodes write. Algorithm 8 finds the *self-contained* node: starting from the node
 that matches X (a Sequence or SubTree preferred, the shallowest), it climbs to ancestors
 until every keyed input of its execution descendants is written by one of them.
-Algorithm 9 inserts a deep copy of that node right after the current subgoal (the
-nearest SubTree above the current node), in the subgoal's parent.
+Algorithm 9 inserts a deep copy of that node right after the current subgoal
+(``btlog.explain.hierarchy.subgoal_node``: the nearest SubTree above the current node,
+else the goal's step that holds it), in the subgoal's parent; where that parent is a
+decorator (one child only), right after the decorator, in the nearest control node.
 
 ``plan_insertion`` is pure: it returns where the copy would go. The live executor
 applies the plan (recording a ``TreeMutation``); a post-hoc question applies it to a
@@ -17,7 +19,8 @@ from __future__ import annotations
 from dataclasses import dataclass
 
 from btlog.explain.hierarchy import subgoal_node
-from btlog.tree.model import INOUT, INPUT, OUTPUT, SUBTREE, Node, Tree
+from btlog.explain.words import words
+from btlog.tree.model import CONTROL, INOUT, INPUT, OUTPUT, SUBTREE, Node, Tree
 
 PREFERRED_TYPES = ("Sequence", "SubTree")
 
@@ -42,10 +45,10 @@ class InsertionPlan:
 
 
 def find_requested(tree: Tree, wanted: str) -> Node | None:
-    """The node whose d(n) is ``wanted`` (case-insensitive): a Sequence or SubTree if
-    there is one, else any node; the shallowest, then the first in tree order."""
+    """The node whose d(n) or words are ``wanted`` (case-insensitive): a Sequence or
+    SubTree if there is one, else any node; the shallowest, then the first in tree order."""
     key = " ".join(wanted.lower().split())
-    matches = [n for n in tree if n.description.lower() == key]
+    matches = [n for n in tree if key in (n.description.lower(), words(n).lower())]
     if not matches:
         return None
     preferred = [n for n in matches if n.type in PREFERRED_TYPES or n.kind == SUBTREE]
@@ -83,13 +86,15 @@ def plan_insertion(tree: Tree, current: Node | None, wanted: str) -> InsertionPl
     requested = find_requested(tree, wanted)
     if requested is None or current is None:
         return None
-    subgoal = subgoal_node(current)
-    if subgoal is None or subgoal is tree.root or subgoal.parent is None:
+    after = subgoal_node(current)
+    while after is not None and after.parent is not None and after.parent.kind != CONTROL:
+        after = after.parent
+    if after is None or after is tree.root or after.parent is None:
         return None
     source = self_contained(requested)
     if source is None or source is tree.root:
         return None
-    return InsertionPlan(requested, source, subgoal.parent, subgoal)
+    return InsertionPlan(requested, source, after.parent, after)
 
 
 def apply_to_copy(tree: Tree, plan: InsertionPlan, seq: int | None = None) -> Tree:

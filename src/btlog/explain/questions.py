@@ -30,8 +30,9 @@ from btlog.explain.hierarchy import (
     subgoal_node,
     why,
 )
-from btlog.explain.insertion import InsertionPlan, plan_insertion
+from btlog.explain.insertion import InsertionPlan, find_requested, plan_insertion
 from btlog.explain.recall import about, find_nodes, how_long, when_last, why_failed, why_not
+from btlog.explain.words import goal_words, words
 from btlog.history import History
 from btlog.state import State
 from btlog.tree.model import Node, Tree
@@ -136,6 +137,8 @@ class Answer:
     text: str
     nodes: tuple[int, ...] = ()
     insertion: InsertionPlan | None = field(default=None, compare=False)
+    #: False when the question names a node the tree does not have (the answer says so).
+    known: bool = True
 
     def to_json(self) -> dict:
         """JSON-ready form (``--json``)."""
@@ -145,6 +148,8 @@ class Answer:
             "answer": self.text,
             "nodes": list(self.nodes),
         }
+        if not self.known:
+            data["known"] = False
         if self.insertion is not None:
             data["insertion"] = self.insertion.to_json()
         return data
@@ -195,7 +200,7 @@ def answer(
             nodes, lambda n: how(subgoal_node(n), "subgoal"), "Sorry. I don't have a subgoal."
         )
     elif intent == "how_goal":
-        text = how(tree.root, "goal")
+        text = how(tree.root, "goal", tree)
     elif intent == "wrong":
         text = what_went_wrong_over_history(tree, state, history)
     elif intent == "next":
@@ -208,9 +213,9 @@ def answer(
 def _next(tree: Tree, state: State, history: History | None, nodes: list[Node]) -> str:
     """``What will you do next?`` for each current node."""
     if history is not None and last_completion(tree.root, state, history) is not None:
-        return f"I have finished {tree.root.description}."
+        return f"I have finished {goal_words(tree)}."
     if not nodes:
-        first = dict.fromkeys(n.description for n in entry(tree.root, state))
+        first = dict.fromkeys(words(n) for n in entry(tree.root, state))
         return f"I will {' and '.join(first)} first."
     return per_node(nodes, lambda n: next_sentence(tree, n, state, history), "")
 
@@ -227,7 +232,7 @@ def _about_node(
     """The questions about one node X."""
     nodes = find_nodes(tree, what)
     if not nodes:
-        return Answer(question, intent, f'Sorry. I don\'t know "{what.strip()}".')
+        return _unknown(question, intent, what)
     if history is None:
         from btlog.history import LiveHistory
 
@@ -244,14 +249,21 @@ def _about_node(
     return Answer(question, intent, text, (node.uid,))
 
 
+def _unknown(question: str, intent: str, what: str) -> Answer:
+    """The answer to a question about a node the tree does not have."""
+    return Answer(question, intent, f'Sorry. I don\'t know "{what.strip()}".', known=False)
+
+
 def _can(tree: Tree, nodes: list[Node], question: str, wanted: str) -> Answer:
     wanted = wanted.strip()
+    if find_requested(tree, wanted) is None:
+        return _unknown(question, "can", wanted)
     plan = plan_insertion(tree, nodes[0] if nodes else None, wanted)
     if plan is None:
         return Answer(
             question, "can", f'Sorry. I cannot redo "{wanted}".', tuple(n.uid for n in nodes)
         )
-    text = f"Yes. I will {plan.requested.description} after {plan.after.description}."
+    text = f"Yes. I will {words(plan.requested)} after {words(plan.after)}."
     return Answer(question, "can", text, (plan.source.uid,), plan)
 
 

@@ -9,11 +9,12 @@ only, so it is the same live and post hoc.
 
 from __future__ import annotations
 
-from btlog.explain.causes import because, seconds
+from btlog.explain.causes import because
 from btlog.explain.handlers import FallbackHandler, handler_of
-from btlog.history import ANY_STATUS, COMPLETIONS, History
+from btlog.explain.words import humanize, is_named, seconds, words
+from btlog.history import ANY_STATUS, COMPLETIONS, History, Transition
 from btlog.state import State
-from btlog.status import FAILURE, RUNNING, SUCCESS, Status
+from btlog.status import FAILURE, IDLE, RUNNING, SUCCESS, Status
 from btlog.tree.model import Node, Tree
 
 #: "When did X last …?": the statuses asked about and the words of the answer.
@@ -29,18 +30,23 @@ def _fold(text: str) -> str:
 
 
 def find_nodes(tree: Tree, text: str) -> list[Node]:
-    """The nodes ``text`` names, outermost first: by path or name, else by type
-    (nameless nodes first)."""
+    """The nodes ``text`` names, outermost first: by path, name or the words an answer
+    speaks of them with (``compute path to pose`` is ``ComputePathToPose``), else by
+    type (nameless nodes first)."""
     wanted = _fold(text.strip().strip("\"'“”‘’"))
+    wanted_bare = wanted[4:] if wanted.startswith("the ") else wanted
     groups: dict[int, list[tuple[int, int, Node]]] = {}
     for order, node in enumerate(tree):
-        name = _fold(node.name)
-        if wanted.startswith("the ") and name == wanted[4:]:
-            name = wanted
-        if node.path == text or _fold(node.path) == wanted or name == wanted:
+        names = {_fold(node.name), _fold(words(node))}
+        if (
+            node.path == text
+            or _fold(node.path) == wanted
+            or wanted in names
+            or wanted_bare in names
+        ):
             rank = 1
-        elif _fold(node.type) == wanted:
-            rank = 2 if not node.name else 3
+        elif _fold(node.type) == wanted or _fold(humanize(node.type)) == wanted:
+            rank = 2 if not is_named(node) else 3
         else:
             continue
         groups.setdefault(rank, []).append((node.depth, order, node))
@@ -71,12 +77,14 @@ def why_failed(tree: Tree, node: Node, state: State, history: History) -> str:
     """``I could not {d(X)} because {d(leaf)} failed.`` for X's last FAILURE."""
     failed = history.last([node.uid], (FAILURE,), 0, state.seq)
     if failed is None:
-        return f"{node.description} has not failed."
-    return f"I could not {node.description} because {because(tree, node, failed, history)}."
+        return f"{words(node)} has not failed."
+    return f"I could not {words(node)} because {because(tree, node, failed, history)}."
 
 
 def why_not(tree: Tree, node: Node, state: State, history: History) -> str:
-    """Why X did not start in its parent's activation (see the README's table)."""
+    """Why X did not happen (see the README's table): X's last activation in its
+    parent's last activation — it failed, was halted, still runs or succeeded — or, when
+    X did not start there, the earlier sibling's result that kept it from starting."""
     now, asked = state.seq, node
     while node.parent is not None:
         parent = node.parent
@@ -84,15 +92,58 @@ def why_not(tree: Tree, node: Node, state: State, history: History) -> str:
         if start is None:
             node = parent
             continue
-        if history.first([node.uid], ANY_STATUS, start.seq, now, starts=True) is not None:
-            return f"I did {asked.description}." if node is asked else _not_yet(asked)
-        return _reason(tree, asked, node, start.seq, state, history)
+        if history.first([node.uid], ANY_STATUS, start.seq, now, starts=True) is None:
+            return _reason(tree, asked, node, start.seq, state, history)
+        return _last_activation(tree, asked, state, history) if node is asked else _not_yet(asked)
     ran = history.last([node.uid], ANY_STATUS, 0, now, starts=True)
-    return f"I did {asked.description}." if ran is not None and node is asked else _not_yet(asked)
+    if ran is None or node is not asked:
+        return _not_yet(asked)
+    return _last_activation(tree, asked, state, history)
 
 
 def _not_yet(node: Node) -> str:
-    return f"I have not {node.description} yet."
+    return f"I have not started to {words(node)} yet."
+
+
+def _last_activation(tree: Tree, node: Node, state: State, history: History) -> str:
+    """How X's last activation went: ``I did X.``, ``I tried to X, but …``, ``I started
+    to X at t s, but stopped at t s because …``, or ``I am still trying to X …``."""
+    now = state.seq
+    start = history.last([node.uid], ANY_STATUS, 0, now, starts=True)
+    assert start is not None
+    end: Transition | None = start
+    if start.status not in (SUCCESS, FAILURE):
+        end = history.first([node.uid], (SUCCESS, FAILURE, IDLE), start.seq + 1, now)
+    if end is None:
+        return f"I am still trying to {words(node)}: I started at {seconds(start.t_ns)} s."
+    if end.status is SUCCESS:
+        return f"I did {words(node)}."
+    if end.status is FAILURE:
+        return f"I tried to {words(node)}, but {_because_of(tree, node, end, history)}."
+    text = f"I started to {words(node)} at {seconds(start.t_ns)} s, but stopped at "
+    return text + f"{seconds(end.t_ns)} s{_halted_because(tree, node, start, end, history)}."
+
+
+def _because_of(tree: Tree, node: Node, failed: Transition, history: History) -> str:
+    """``{leaf} failed`` for X's FAILURE, ``it failed`` when X is the leaf."""
+    reason = because(tree, node, failed, history)
+    own = f"{words(node)} failed"
+    return (
+        "it failed" + reason[len(own) :] if reason.startswith(own) and node.is_execution else reason
+    )
+
+
+def _halted_because(
+    tree: Tree, node: Node, start: Transition, halt: Transition, history: History
+) -> str:
+    """`` because {cause}`` of the halt: the completion of the nearest ancestor that
+    completed while X ran (a reactive sibling's check, a Timeout, a Parallel's other
+    branch), or "" when the tree itself was stopped."""
+    ancestors = [a.uid for a in node.ancestors()]
+    done = history.last(ancestors, COMPLETIONS, start.seq, halt.seq)
+    if done is None:
+        return ""
+    return f" because {because(tree, tree.node(done.uid), done, history)}"
 
 
 def _reason(tree: Tree, asked: Node, node: Node, since: int, state: State, history: History) -> str:
@@ -108,9 +159,9 @@ def _reason(tree: Tree, asked: Node, node: Node, since: int, state: State, histo
     if done is None:
         return _not_yet(asked)
     if fallback:
-        return f"I did not {asked.description} because {tree.node(done.uid).description} succeeded."
+        return f"I did not {words(asked)} because {words(tree.node(done.uid))} succeeded."
     sibling = tree.node(done.uid)
-    return f"I did not {asked.description} because {because(tree, sibling, done, history)}."
+    return f"I did not {words(asked)} because {because(tree, sibling, done, history)}."
 
 
 def when_last(node: Node, event: str, state: State, history: History) -> str:
@@ -118,8 +169,8 @@ def when_last(node: Node, event: str, state: State, history: History) -> str:
     statuses, starts, did, never = EVENTS[event]
     found = history.last([node.uid], statuses, 0, state.seq, starts=starts)
     if found is None:
-        return f"{node.description} {never}."
-    return f"{node.description} last {did} at {seconds(found.t_ns)} s."
+        return f"{words(node)} {never}."
+    return f"{words(node)} last {did} at {seconds(found.t_ns)} s."
 
 
 def how_long(node: Node, state: State, history: History, now_ns: int) -> str:
@@ -128,15 +179,15 @@ def how_long(node: Node, state: State, history: History, now_ns: int) -> str:
     now = state.seq
     start = history.last([node.uid], ANY_STATUS, 0, now, starts=True)
     if start is None:
-        return f"{node.description} has not started."
+        return f"{words(node)} has not started."
     if state.status_of(node.uid) is RUNNING:
-        return f"{node.description} has been running for {seconds(now_ns - start.t_ns)} s."
+        return f"{words(node)} has been running for {seconds(now_ns - start.t_ns)} s."
     done = history.last([node.uid], COMPLETIONS, 0, now)
     if done is None:
-        return f"{node.description} has not completed."
+        return f"{words(node)} has not completed."
     began = history.last([node.uid], ANY_STATUS, 0, done.seq + 1, starts=True)
     t0 = done.t_ns if began is None else began.t_ns
     return (
-        f"{node.description} took {seconds(done.t_ns - t0)} s, "
+        f"{words(node)} took {seconds(done.t_ns - t0)} s, "
         f"from {seconds(t0)} s to {seconds(done.t_ns)} s."
     )

@@ -1,35 +1,57 @@
 """The run's story: what a user reads first after a run (``btlog explain REC``).
 
-Top down: the outcome, duration and ticks; each failure episode in time order — when,
-what Q6 said at that moment, and how the failure was handled (retried, attempt k of n;
-fell back to another child; or propagated up to the goal); then each subgoal with its
-result, duration and attempts. A pure function of (tree, state, history) like the
-answers, built from history queries only.
+Top down: the goal and how the run ended — its **outcome** is the run's final status,
+the root's status after its last tick (``not finished (RUNNING)`` for a run that was
+stopped, cut short or is ticked in a loop); when the root ran more than once (a tree
+ticked in a loop, re-run after each completion) each **run of the goal** is told on its
+own line, or counted by result when there are many; then each failure **episode** in time
+order — when, what Q6 said about it, and how it was handled (retried, attempt k of n;
+fell back to another child; or propagated up to the goal); then each **subgoal**
+(``btlog.explain.hierarchy.subgoals``) with its result, duration and attempts in the
+last run of the goal. A pure function of (tree, state, history) like the answers, built
+from history queries only.
 
-An *episode* is one execution node's failure as the failure handlers above it
+An *episode* is one execution node's real failure as the failure handlers above it
 (``btlog.explain.handlers``) saw it: each handler whose child failed because of it
-reacted once, innermost first. Consecutive episodes that read the same (same sentence,
-same handling) are told once with a count, and at most ``MAX_EPISODES`` failures are
-looked at, so a long run with a few failures fits one screen and a run failing all the
-time still says how often.
+reacted once, innermost first. A guard's failure (a condition failing in front of the
+branch it guards: the tree choosing a branch; ``btlog.explain.failure``) is no episode:
+the story counts guards apart. The sentence is Q6 at the moment the innermost handler
+saw the failure, asked of the failed leaf itself, with the leaf's grounds. Consecutive
+episodes that read the same (same sentence, same handling) are told once with a count
+when there are many, and at most ``MAX_EPISODES`` episodes (of at most ``MAX_EXAMINED``
+handled failures) are looked at, so a long run with a few failures fits one screen and
+a run failing all the time still says how often.
 """
 
 from __future__ import annotations
 
+from collections.abc import Iterator
 from dataclasses import dataclass, field
 
-from btlog.explain.causes import activation_start, algorithm7, cause, root_failure, seconds
-from btlog.explain.failure import NOTHING_WRONG
+from btlog.explain.causes import (
+    actions_below,
+    activation_start,
+    because,
+    by_guard,
+    cause,
+    root_failure,
+)
+from btlog.explain.failure import NOTHING_WRONG, diagnose
+from btlog.explain.grounds import grounded, grounds
 from btlog.explain.handlers import FELL_BACK, PROPAGATED, Reaction, handler_of
-from btlog.explain.hierarchy import steps
+from btlog.explain.hierarchy import subgoals
+from btlog.explain.words import goal_words, seconds, words
 from btlog.history import ANY_STATUS, COMPLETIONS, History, Transition
 from btlog.state import State
-from btlog.status import FAILURE
+from btlog.status import FAILURE, IDLE, RUNNING
 from btlog.tree.model import SUBTREE, Node, Tree
 
-#: Handled failures looked at (the rest are counted).
+#: Episodes looked at (the rest are counted).
 MAX_EPISODES = 200
-#: Above this many episodes, those that read the same are told once.
+#: Handled failures examined for episodes (guards included), read this many at a time.
+MAX_EXAMINED = 20_000
+PAGE = 500
+#: Above this many episodes (or runs of the goal), those that read the same are told once.
 SCREEN = 12
 
 
@@ -99,6 +121,27 @@ class Subgoal:
 
 
 @dataclass
+class GoalRun:
+    """One run of the goal (an activation of the root): its result, or None while it
+    runs or after it was halted."""
+
+    start_ns: int
+    end_ns: int | None
+    result: str | None
+
+    def to_json(self) -> dict:
+        """JSON-ready form."""
+        return {"start_ns": self.start_ns, "end_ns": self.end_ns, "result": self.result}
+
+    def text(self) -> str:
+        """E.g. ``SUCCESS in 10.000 s (0.000 s to 10.000 s)``."""
+        if self.end_ns is None:
+            return f"running since {seconds(self.start_ns)} s"
+        span = f"({seconds(self.start_ns)} s to {seconds(self.end_ns)} s)"
+        return f"{self.result or 'halted'} in {seconds(self.end_ns - self.start_ns)} s {span}"
+
+
+@dataclass
 class Story:
     """The whole run, told top down."""
 
@@ -111,6 +154,9 @@ class Story:
     failures: int
     episodes: list[Episode] = field(default_factory=list)
     subgoals: list[Subgoal] = field(default_factory=list)
+    runs: list[GoalRun] = field(default_factory=list)
+    guards: int = 0
+    examined_all: bool = True
 
     def to_json(self) -> dict:
         """JSON-ready form (``btlog explain REC --json``)."""
@@ -122,6 +168,9 @@ class Story:
             "ticks": self.ticks,
             "events": self.events,
             "handled_failures": self.failures,
+            "guard_failures": self.guards,
+            "examined_all_failures": self.examined_all,
+            "goal_runs": [r.to_json() for r in self.runs],
             "episodes": [e.to_json() for e in self.episodes],
             "subgoals": [s.to_json() for s in self.subgoals],
         }
@@ -134,6 +183,9 @@ class Story:
         ]
         if self.why:
             out.append(self.why)
+        if len(self.runs) > 1:
+            out.append(f"The goal ran {len(self.runs)} times:")
+            out += [f"  {line}" for line in _runs_told(self.runs)]
         told = sum(e.count for e in self.episodes)
         out.append(f"Failures: {told}." if told else "No failures.")
         for episode in self.episodes:
@@ -142,33 +194,70 @@ class Story:
                 when += f" … {seconds(episode.last_t_ns)} s, {episode.count} times"
             out.append(f"  {when}: {episode.sentence}")
             out.append(f"    {'; '.join(episode.handling)}.")
-        if self.failures > MAX_EPISODES:
+        if self.failures > MAX_EPISODES or not self.examined_all:
+            more = "at least " if not self.examined_all else ""
             out.append(
-                f"  {self.failures} failures were handled in all; the first {MAX_EPISODES} "
-                "are told."
+                f"  {more}{self.failures} failures were handled in all; the first "
+                f"{MAX_EPISODES} are told."
             )
+        if self.guards:
+            checks = "check" if self.guards == 1 else "checks"
+            out.append(f"  ({self.guards} guard {checks} chose another branch, as designed.)")
         if self.subgoals:
-            out.append("Subgoals:")
+            last = " (in the goal's last run)" if len(self.runs) > 1 else ""
+            out.append(f"Subgoals{last}:")
         out += [f"  {sub.text()}" for sub in self.subgoals]
         return out
 
 
-def _subgoals(tree: Tree) -> list[Node]:
-    """The SubTree nodes; the goal's steps (Algorithm 5) when the tree has none."""
-    found = [n for n in tree if n.kind == SUBTREE]
-    return found or steps(tree.root)
+def _runs_told(runs: list[GoalRun]) -> list[str]:
+    """Each run of the goal, numbered; counted by result when there are many."""
+    if len(runs) <= SCREEN:
+        return [f"{i}. {run.text()}" for i, run in enumerate(runs, 1)]
+    counts: dict[str, int] = {}
+    for run in runs[:-1]:
+        key = run.result or "halted"
+        counts[key] = counts.get(key, 0) + 1
+    summary = ", ".join(f"{n} {result}" for result, n in counts.items())
+    return [f"1–{len(runs) - 1}. {summary}", f"{len(runs)}. {runs[-1].text()}"]
 
 
-def _subgoal(node: Node, now: int, history: History) -> Subgoal:
-    starts = history.count([node.uid], ANY_STATUS, 0, now, starts=True)
-    first = history.first([node.uid], ANY_STATUS, 0, now, starts=True)
-    done = history.last([node.uid], COMPLETIONS, 0, now)
+def final_status(tree: Tree, state: State, history: History) -> str:
+    """The run's final status: the root's status after its last tick (its last change
+    other than a reset to IDLE), IDLE when it never ran."""
+    statuses = (RUNNING, *COMPLETIONS)
+    last = history.last([tree.root.uid], statuses, 0, state.seq)
+    return IDLE.name if last is None else last.status.name
+
+
+def goal_runs(tree: Tree, state: State, history: History, limit: int = 10_000) -> list[GoalRun]:
+    """Every run of the goal (at most ``limit``): each activation of the root."""
+    root, now = tree.root.uid, state.seq
+    starts = history.transitions([root], ANY_STATUS, 0, now, limit, starts=True)
+    runs = []
+    for index, start in enumerate(starts):
+        hi = starts[index + 1].seq if index + 1 < len(starts) else now
+        end = start if start.status in COMPLETIONS else None
+        if end is None:
+            end = history.first([root], (*COMPLETIONS, IDLE), start.seq + 1, hi)
+        if end is None:
+            runs.append(GoalRun(start.t_ns, None, None))
+        else:
+            result = end.status.name if end.status in COMPLETIONS else None
+            runs.append(GoalRun(start.t_ns, end.t_ns, result))
+    return runs
+
+
+def _subgoal(node: Node, lo: int, now: int, history: History) -> Subgoal:
+    starts = history.count([node.uid], ANY_STATUS, lo, now, starts=True)
+    first = history.first([node.uid], ANY_STATUS, lo, now, starts=True)
+    done = history.last([node.uid], COMPLETIONS, lo, now)
     last_start = (
-        None if done is None else history.last([node.uid], ANY_STATUS, 0, done.seq, starts=True)
+        None if done is None else history.last([node.uid], ANY_STATUS, lo, done.seq, starts=True)
     )
     depth = sum(1 for a in node.ancestors() if a.kind == SUBTREE)
     return Subgoal(
-        node.description,
+        words(node),
         depth,
         starts,
         None if done is None else done.status.name,
@@ -190,25 +279,64 @@ def _reaction(tree: Tree, failed: Transition, history: History) -> Reaction | No
 
 
 def _sentence(tree: Tree, failed: Transition, leaf: Node, history: History) -> str:
-    """Q6 right after the handler saw the failure; the cause when Algorithm 7 is silent."""
+    """Q6 about the failed leaf right after the handler saw its failure, grounded; the
+    cause when Algorithm 7 is silent."""
     then_tree, then = history.state_after(failed.seq + 1)
-    text = algorithm7(then_tree, then)
+    text, blamed = diagnose(then_tree.nodes.get(leaf.uid), then)
+    if text != NOTHING_WRONG and blamed is not None:
+        return grounded(text, tree, blamed, failed.seq + 1, history)
     if text != NOTHING_WRONG:
         return text
     node = tree.node(failed.uid)
-    return f"I could not {node.description} because {leaf.description} failed."
+    done = history.last([leaf.uid], (FAILURE,), 0, failed.seq + 1)
+    reason = "" if done is None else grounds(tree, leaf, done, history)
+    return f"I could not {words(node)} because {words(leaf)} failed{reason}."
 
 
-def _episodes(tree: Tree, state: State, history: History) -> tuple[list[Episode], int]:
-    """The episodes, and how many handled failures the run had."""
+class _Failures:
+    """The handled failures that are episodes: failures of a failure handler's children,
+    guards' left out (counted), read in pages."""
+
+    def __init__(self, tree: Tree, now: int, history: History) -> None:
+        self.tree, self.now, self.history = tree, now, history
+        handled = [c for n in tree if handler_of(n) is not None for c in n.children]
+        self.guards = history.count(
+            [c.uid for c in handled if not actions_below(c)], (FAILURE,), 0, now
+        )
+        self.uids = [c.uid for c in handled if actions_below(c)]
+        self.examined_all = True
+
+    def __iter__(self) -> Iterator[Transition]:
+        lo, examined = 0, 0
+        while lo < self.now:
+            page = self.history.transitions(self.uids, (FAILURE,), lo, self.now, PAGE)
+            for failed in page:
+                examined += 1
+                if examined > MAX_EXAMINED:
+                    self.examined_all = False
+                    return
+                if by_guard(self.tree.node(failed.uid), failed, self.history):
+                    self.guards += 1
+                else:
+                    yield failed
+            if len(page) < PAGE:
+                return
+            lo = page[-1].seq + 1
+
+
+def _episodes(tree: Tree, state: State, history: History) -> tuple[list[Episode], int, _Failures]:
+    """The episodes, how many real handled failures the run had, and what was read."""
     now = state.seq
-    handled = [c.uid for n in tree if handler_of(n) is not None for c in n.children]
-    failures = history.count(handled, (FAILURE,), 0, now)
     by_leaf: dict[int, Episode] = {}
     # (handler, its activation) -> (the child it fell back to, the episode)
     fell_back: dict[tuple[int, int], tuple[int, Episode]] = {}
     episodes: list[Episode] = []
-    for failed in history.transitions(handled, (FAILURE,), 0, now, MAX_EPISODES):
+    failures = 0
+    found = _Failures(tree, now, history)
+    for failed in found:
+        failures += 1
+        if len(by_leaf) >= MAX_EPISODES and failed.seq not in by_leaf:
+            continue
         leaf_done = cause(tree, tree.node(failed.uid), failed, history)
         parent = tree.node(failed.uid).parent
         assert parent is not None
@@ -217,9 +345,11 @@ def _episodes(tree: Tree, state: State, history: History) -> tuple[list[Episode]
         if episode is None and key in fell_back and fell_back[key][0] == failed.uid:
             episode = fell_back[key][1]  # the alternative failed too: the same episode
         if episode is None:
+            if len(episodes) >= MAX_EPISODES:
+                continue
             leaf = tree.node(leaf_done.uid)
             sentence = _sentence(tree, failed, leaf, history)
-            episode = Episode(leaf_done.seq, leaf_done.t_ns, leaf.description, sentence, [])
+            episode = Episode(leaf_done.seq, leaf_done.t_ns, words(leaf), sentence, [])
             episodes.append(episode)
         by_leaf[leaf_done.seq] = episode
         reaction = _reaction(tree, failed, history)
@@ -232,13 +362,17 @@ def _episodes(tree: Tree, state: State, history: History) -> tuple[list[Episode]
         leaf_done = cause(tree, tree.root, root_done, history)
         episode = by_leaf.get(leaf_done.seq)
         if episode is None:
-            sentence = root_failure(tree, state, history) or ""
-            described = tree.node(leaf_done.uid).description
+            sentence = _root_sentence(tree, root_done, history)
+            described = words(tree.node(leaf_done.uid))
             episode = Episode(leaf_done.seq, leaf_done.t_ns, described, sentence, [])
             episodes.append(episode)
             failures += 1
-        episode.handling.append(f"{PROPAGATED} to {tree.root.description}: the run failed")
-    return _grouped(episodes), failures
+        episode.handling.append(f"{PROPAGATED} to {goal_words(tree)}: the run failed")
+    return _grouped(episodes), failures, found
+
+
+def _root_sentence(tree: Tree, root_done: Transition, history: History) -> str:
+    return f"I could not {goal_words(tree)} because {because(tree, tree.root, root_done, history)}."
 
 
 def _grouped(episodes: list[Episode]) -> list[Episode]:
@@ -280,12 +414,17 @@ def _merge(into: Episode, episode: Episode) -> None:
 def story(tree: Tree, state: State, history: History) -> Story:
     """The story of the run up to ``state`` (its end, for ``btlog explain REC``)."""
     now = state.seq
-    root_done = history.last([tree.root.uid], COMPLETIONS, 0, now)
-    outcome = "not finished" if root_done is None else root_done.status.name
-    why = root_failure(tree, state, history) if outcome == FAILURE.name else None
-    episodes, failures = _episodes(tree, state, history)
+    status = final_status(tree, state, history)
+    outcome = status if status in ("SUCCESS", "FAILURE") else f"not finished ({status})"
+    why = root_failure(tree, state, history) if status == FAILURE.name else None
+    runs = goal_runs(tree, state, history)
+    since = 0
+    if len(runs) > 1:
+        last_start = history.last([tree.root.uid], ANY_STATUS, 0, now, starts=True)
+        since = 0 if last_start is None else last_start.seq
+    episodes, failures, found = _episodes(tree, state, history)
     return Story(
-        goal=tree.root.description,
+        goal=goal_words(tree),
         outcome=outcome,
         why=why,
         duration_ns=state.t_ns,
@@ -293,5 +432,8 @@ def story(tree: Tree, state: State, history: History) -> Story:
         events=state.seq,
         failures=failures,
         episodes=episodes,
-        subgoals=[_subgoal(n, now, history) for n in _subgoals(tree)],
+        subgoals=[_subgoal(n, since, now, history) for n in subgoals(tree)],
+        runs=runs,
+        guards=found.guards,
+        examined_all=found.examined_all,
     )

@@ -18,16 +18,30 @@ from btlog.history import COMPLETIONS
 from btlog.replay.database import Run
 from btlog.status import FAILURE
 
-#: Per activation of a node: ``activation`` counts the node's starts out of IDLE in
-#: event order (1 = its first); ``end_ns`` is NULL for an activation never completed.
+#: Per activation of a node: ``activation`` counts the node's starts (``btlog.history.
+#: resumes``: a result returned right after the node's own halt ends the activation it
+#: halted) in event order (1 = its first); ``end_ns`` is NULL for an activation never
+#: completed.
 ACTIVATIONS = """
-WITH numbered AS (
-  SELECT run_id, uid, seq, t_ns, CAST(status AS VARCHAR) AS status,
-         sum(CASE WHEN CAST(prev_status AS VARCHAR) = 'IDLE'
-                   AND CAST(status AS VARCHAR) <> 'IDLE' THEN 1 ELSE 0 END)
+WITH changes AS (
+  SELECT run_id, uid, seq, t_ns, CAST(prev_status AS VARCHAR) AS prev,
+         CAST(status AS VARCHAR) AS status,
+         lag(seq) OVER (PARTITION BY run_id, uid ORDER BY seq) AS before_seq,
+         CAST(lag(prev_status) OVER (PARTITION BY run_id, uid ORDER BY seq) AS VARCHAR)
+           AS before_prev,
+         CAST(lag(status) OVER (PARTITION BY run_id, uid ORDER BY seq) AS VARCHAR)
+           AS before_status
+  FROM {source} WHERE run_id = $run
+),
+numbered AS (
+  SELECT run_id, uid, seq, t_ns, status,
+         sum(CASE WHEN prev = 'IDLE' AND status <> 'IDLE'
+                   AND NOT (status IN ('SUCCESS', 'FAILURE') AND before_seq = seq - 1
+                            AND before_prev = 'RUNNING' AND before_status = 'IDLE')
+                  THEN 1 ELSE 0 END)
            OVER (PARTITION BY run_id, uid ORDER BY seq
                  ROWS BETWEEN UNBOUNDED PRECEDING AND CURRENT ROW) AS activation
-  FROM {source} WHERE run_id = $run
+  FROM changes
 )
 SELECT run_id, uid, CAST(activation AS INTEGER) AS activation,
        min(t_ns) AS start_ns,

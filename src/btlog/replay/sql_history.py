@@ -13,7 +13,9 @@ from __future__ import annotations
 from collections.abc import Collection
 from typing import TYPE_CHECKING
 
-from btlog.history import History, Statuses, Transition, TransitionIndex, Uids
+import orjson
+
+from btlog.history import History, Statuses, Transition, TransitionIndex, Uids, Write
 from btlog.state import State
 from btlog.status import Status
 from btlog.tree.model import Tree
@@ -30,6 +32,15 @@ WINDOW_GROWTH = 16
 
 
 _COLUMNS = "seq, t_ns, uid, enum_code(prev_status), enum_code(status)"
+#: The start of an activation (``btlog.history.resumes``), for a row of ``transitions``
+#: in ``lo <= seq < hi``: a change out of IDLE that does not follow, right after, the
+#: node's own halt with its result.
+STARTS = (
+    "prev_status = 'IDLE' AND NOT (status IN ('SUCCESS', 'FAILURE') AND EXISTS ("
+    "SELECT 1 FROM {table} h WHERE h.run_id = t.run_id AND h.seq >= $lo - 1 "
+    "AND h.seq < $hi AND h.seq = t.seq - 1 AND h.uid = t.uid "
+    "AND h.prev_status = 'RUNNING' AND h.status = 'IDLE'))"
+)
 
 
 def _in_list(values: Collection[int]) -> str:
@@ -53,7 +64,7 @@ class SqlHistory(History):
 
     def _rows(self, where: str, tail: str, params: dict, columns: str = _COLUMNS) -> list[tuple]:
         return self.run.con.execute(
-            f"SELECT {columns} FROM {self._table} WHERE run_id = $run_id {where} {tail}",
+            f"SELECT {columns} FROM {self._table} t WHERE run_id = $run_id {where} {tail}",
             {"run_id": self.run.stored_id, **params},
         ).fetchall()
 
@@ -71,7 +82,7 @@ class SqlHistory(History):
             f"AND enum_code(status) IN {_in_list([int(s) for s in statuses])}"
         )
         if starts:
-            where += " AND prev_status = 'IDLE'"
+            where += f" AND {STARTS.format(table=self._table)}"
         params = {"lo": lo, "hi": hi}
         if kind == "count":
             return int(self._rows(where, "", params, "count(*)")[0][0])
@@ -96,6 +107,30 @@ class SqlHistory(History):
     def state_after(self, count: int) -> tuple[Tree, State]:
         """See ``History.state_after``: the read model's snapshot and tail."""
         return self.run.state_after(count)
+
+    def _writes(self, where: str, tail: str, params: dict) -> list[Write]:
+        rows = self.run.con.execute(
+            "SELECT seq, t_ns, scope, key, value, type, writer_uid "
+            f"FROM {self.run.catalog}.blackboard WHERE run_id = $run_id "
+            f"AND seq >= $lo AND seq < $hi {where} {tail}",
+            {"run_id": self.run.stored_id, **params},
+        ).fetchall()
+        return [
+            Write(seq, t_ns, scope, key, None if value is None else orjson.loads(value), kind, who)
+            for seq, t_ns, scope, key, value, kind, who in rows
+        ]
+
+    def writes_by(self, writer: int, lo: int, hi: int, limit: int) -> list[Write]:
+        """See ``History.writes_by``: one SQL statement."""
+        params = {"lo": lo, "hi": hi, "writer": writer}
+        return self._writes("AND writer_uid = $writer", f"ORDER BY seq LIMIT {int(limit)}", params)
+
+    def last_write(self, scope: str, key: str, lo: int, hi: int) -> Write | None:
+        """See ``History.last_write``: one SQL statement."""
+        params = {"lo": lo, "hi": hi, "scope": scope, "key": key}
+        where = "AND scope = $scope AND key = $key"
+        found = self._writes(where, "ORDER BY seq DESC LIMIT 1", params)
+        return found[0] if found else None
 
 
 def _transition(row: tuple) -> Transition:

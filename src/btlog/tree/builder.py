@@ -17,6 +17,7 @@ from dataclasses import dataclass, replace
 from lxml import etree
 
 from btlog import limits
+from btlog.tree.descriptions import DESCRIPTION
 from btlog.tree.documents import Definition, Documents
 from btlog.tree.model import (
     ACTION,
@@ -90,6 +91,7 @@ class TreeBuilder:
             )
         context = BuildContext(definition.file, ancestors=(main,))
         root = self._build(definition.root_element(), context)
+        _describe_by_tree(root, definition)
         files = [d.file for d in self.documents.documents]
         return Tree(root=root, name=main, format=self.format, files=files)
 
@@ -256,6 +258,7 @@ class TreeBuilder:
             definition.file, node, inner, inner + "/", (*ancestors, subtree_id), context.depth + 1
         )
         node.children.append(self._build(definition.root_element(), inside))
+        _describe_by_tree(node, definition)
         return node
 
     def _subtree_ports(
@@ -365,6 +368,14 @@ def _expanded_size(definitions: dict[str, Definition], main: str, cap: int) -> i
         total = own[tree_id] + sum(sizes.get(c, 0) for c in calls[tree_id])
         sizes[tree_id] = min(total, cap + 1)
     return sizes[main]
+
+
+def _describe_by_tree(node: Node, definition: Definition) -> None:
+    """A ``<BehaviorTree _description="…">`` describes the node that runs it (the main
+    tree's root, or the SubTree node), unless that node has a description of its own."""
+    described = definition.element.get(DESCRIPTION, "").strip()
+    if described and not node.attributes.get(DESCRIPTION, "").strip():
+        node.attributes[DESCRIPTION] = described
 
 
 def _special_attribute(
