@@ -23,7 +23,7 @@ from pathlib import Path
 
 import pytest
 
-from btlog.explain.behaviours import diff_paths, executed_actions, nominal_actions
+from btlog.checks.behaviours import diff_paths, executed_actions, nominal_actions
 from btlog.explain.divergence import ExecutedAction, diverge, to_json
 from btlog.record.reader import open_recording
 from btlog.render.divergence import render

@@ -13,8 +13,8 @@ import tempfile
 from dataclasses import dataclass, replace
 from pathlib import Path
 
+from btlog.checks.behaviours import executed_actions
 from btlog.checks.stored_run import CheckResult, final_status_of
-from btlog.explain.behaviours import executed_actions
 from btlog.explain.divergence import (
     Divergence,
     ExecutedAction,

@@ -10,7 +10,7 @@ from __future__ import annotations
 import os
 from dataclasses import dataclass
 
-from btlog.explain.behaviours import executed_actions
+from btlog.checks.behaviours import executed_actions
 from btlog.explain.divergence import ExecutedAction
 from btlog.explain.questions import answer
 from btlog.record.reader import Recording, open_recording

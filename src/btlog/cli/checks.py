@@ -18,11 +18,11 @@ from pathlib import Path
 
 from rich.text import Text
 
+from btlog.checks.behaviours import diff_paths
 from btlog.checks.expectations import Expectations, check_run, load_expectations
 from btlog.checks.rerun import RerunReport, rerun
 from btlog.checks.stored_run import CheckResult
 from btlog.errors import EXIT_CHECK_FAILED, EXIT_OK
-from btlog.explain.behaviours import diff_paths
 from btlog.explain.divergence import to_json
 from btlog.render.divergence import render_lines
 from btlog.render.escape import safe

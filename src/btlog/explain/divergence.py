@@ -6,7 +6,9 @@ action sequences are compared with the O(NP) algorithm (``btlog.algorithms``): w
 outside the longest common subsequence is divergent, shown with its immediate parent
 as in the paper's Fig. 14 (section 7.2.1). Actions compare by description ``d(n)``, so
 the same step in two versions of a tree matches even when its uid moved. Where the
-behaviours come from is ``btlog.explain.behaviours``; the text is ``btlog.render``.
+behaviours come from is ``btlog.checks.behaviours`` (a recording, or a tree run
+with every leaf succeeding: running trees is not the explanations' job); the text is
+``btlog.render``.
 See docs/design.md, "Divergence".
 """
 

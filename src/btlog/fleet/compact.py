@@ -28,7 +28,7 @@ from pathlib import Path
 
 import duckdb
 
-from btlog.fleet.lake import FILES, LAKE_TABLES, LakeError
+from btlog.fleet.layout import FILES, LAKE_TABLES, LakeError
 from btlog.fleet.lock import lake_lock
 
 

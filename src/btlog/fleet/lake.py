@@ -28,27 +28,15 @@ from pathlib import Path
 import duckdb
 
 from btlog.fleet.derived import create_derived, drop_derived
+from btlog.fleet.layout import FILES, LAKE_TABLES, NONE, PARTITIONS, LakeError
 from btlog.fleet.lock import lake_lock
 from btlog.replay.database import ReplayError, Run, open_runs
-from btlog.replay.tables import PUBLIC_TABLES, identifier
+from btlog.replay.tables import identifier
 
-#: The lake's tables: the read model's public ones, the failure causes and the
-#: activations (``btlog.fleet.derived``). ``runs`` is written last.
-LAKE_TABLES = (*PUBLIC_TABLES, "causes", "activations")
-#: Partition keys (folder names), outermost first; ``run_id`` is a column.
-PARTITIONS = ("domain", "date")
 #: A partition value as it may appear in a folder name.
 _UNSAFE = re.compile(r"[^A-Za-z0-9_.@+-]")
-#: A table's files, relative to its folder.
-FILES = "*/*/*.parquet"
-#: The value used for a run without a domain or start date.
-NONE = "none"
 #: Columns that hold a status (an ENUM in the read model, a string in the lake).
 _STATUS_COLUMNS = ("status", "prev_status", "final_status", "root_status")
-
-
-class LakeError(ValueError):
-    """A lake that cannot be written or read (one line, naming the folder)."""
 
 
 @dataclass(frozen=True)

@@ -20,7 +20,7 @@ import sys
 from pathlib import Path
 from typing import Any
 
-from btlog.fleet.lake import FILES, LAKE_TABLES
+from btlog.fleet.layout import FILES, LAKE_TABLES
 from btlog.fleet.report import FleetReport, normalised, partition_filter, queries
 
 

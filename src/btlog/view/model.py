@@ -15,7 +15,7 @@ from typing import Any
 
 import orjson
 
-from btlog.explain.behaviours import diff_paths
+from btlog.checks.behaviours import diff_paths
 from btlog.explain.divergence import to_json
 from btlog.explain.hierarchy import current_nodes
 from btlog.explain.questions import _PATTERNS, EXPLAIN_INTENTS, QUESTIONS, answer, explain
