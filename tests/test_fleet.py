@@ -149,6 +149,30 @@ def test_causes_follow_the_causal_chain(lake):
     assert ("go deliver passenger", "pick up passenger", "failed") in causes
 
 
+def test_failures_by_design_are_no_causes(lake):
+    """The kitting tree's clean-up "reset arm" (a ForceFailure over "retreat arm") fails
+    by design after every failed insertion: when "retreat arm" succeeded, that failure
+    caused nothing to go wrong, and the lake's causes leave it out (a failing "retreat
+    arm" is a real cause and stays)."""
+    made = btlog(
+        "sql",
+        "--lake",
+        str(lake),
+        "--format",
+        "csv",
+        "SELECT count(*) FROM transitions t JOIN nodes n USING (run_id, uid) "
+        "WHERE n.name = 'reset arm' AND t.status = 'FAILURE'",
+    )
+    assert made.returncode == 0, made.stderr
+    assert int(made.stdout.split()[-1]) > 0  # the clean-up ran and failed in these runs
+    report = duckdb_report(str(lake), domain="kitting")
+    assert report.causes
+    assert all(r["verb"] == "failed" for r in report.causes)
+    assert ("reset arm", "retreat arm", "succeeded") not in {
+        (r["failed_node"], r["cause"], r["verb"]) for r in report.causes
+    }
+
+
 def test_fleet_command_prints_the_report_and_json(lake, runs):
     shown = btlog("fleet", str(lake))
     assert shown.returncode == 0, shown.stderr

@@ -13,7 +13,7 @@ from __future__ import annotations
 
 import duckdb
 
-from btlog.explain.causes import cause
+from btlog.explain.causes import by_design, cause
 from btlog.history import COMPLETIONS
 from btlog.replay.database import Run
 from btlog.status import FAILURE
@@ -89,6 +89,8 @@ def _causes_table(run: Run, con: duckdb.DuckDBPyConnection) -> int:
     rows = []
     for done in failures:
         node = tree.node(done.uid)
+        if by_design(tree, node, done, history):
+            continue
         leaf = cause(tree, node, done, history)
         culprit = tree.node(leaf.uid)
         rows.append(
