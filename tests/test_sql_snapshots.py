@@ -54,6 +54,23 @@ def test_sql_snapshots_equal_the_projection_fold(
     assert_snapshots_equal_the_fold(path, live.states, every)
 
 
+NAV2 = Path(__file__).resolve().parent.parent / "trees" / "nav2" / "navigate_to_pose.xml"
+
+
+@PROPERTY
+@given(scripts=scripts_for(NAV2), every=st.integers(1, 9))
+def test_sql_snapshots_equal_the_fold_where_nodes_halt_before_returning(
+    tmp_path_factory, scripts: dict, every: int
+) -> None:
+    """Nav2's RecoveryNode halts itself, then returns its result: the result ends the
+    activation the halt interrupted (``btlog.history.resumes``), also when a snapshot
+    boundary falls between the two changes."""
+    path: Path = tmp_path_factory.mktemp("nav2") / "run.mcap"
+    outcomes = {"default": {"status": "SUCCESS", "ticks": 1}, "nodes": scripts}
+    live = record(path, NAV2, outcomes, max_ticks=60)
+    assert_snapshots_equal_the_fold(path, live.states, every)
+
+
 def test_sql_snapshots_hold_retry_attempts_and_failures(tmp_path: Path) -> None:
     path = tmp_path / "retry.mcap"
     scripts = {"trial and error insert": ["FAILURE", "FAILURE", "SUCCESS"]}

@@ -1,13 +1,14 @@
 """The state at a moment: a projection folded from the events.
 
 ``State`` is everything the explanation algorithms need at one moment of a run, and
-nothing that the events do not hold: each node's status; when each node last left IDLE
-(the start of its current activation); when each node last failed; how many failed
-attempts each RetryUntilSuccessful has made in its current run (BT.CPP's ``try_count``:
-its child's failures, reset when the retry completes or is halted) and likewise each
-Nav2 RecoveryNode (its first child's failures); the last execution
-node to change status; the blackboard per scope; and, through ``TreeMutation`` events,
-the shape of the tree.
+nothing that the events do not hold: each node's status; when each node's current
+activation began (its last change out of IDLE, unless that change was its result
+returned right after its own halt: see ``btlog.history.resumes``); when each node last
+failed; how many failed attempts each RetryUntilSuccessful has made in its current run
+(BT.CPP's ``try_count``: its child's failures, reset when the retry completes or is
+halted) and likewise each Nav2 RecoveryNode (its first child's failures); the last
+execution node to change status; the blackboard per scope; and, through ``TreeMutation``
+events, the shape of the tree.
 
 ``StateProjection`` folds events into a ``State``. It is the only fold: the executor's
 live subscriber and the replay from a recording use the same class, so the live answer
@@ -31,7 +32,7 @@ from btlog.events import (
     TickRecord,
     TreeMutation,
 )
-from btlog.status import FAILURE, IDLE, RUNNING, Status
+from btlog.status import FAILURE, IDLE, RUNNING, SUCCESS, Status
 from btlog.tree.model import EXECUTION_KINDS, Tree, link_nodes
 
 RETRY_TYPE = "RetryUntilSuccessful"
@@ -53,6 +54,9 @@ class State:
     last_leaf: int | None = None
     blackboard: dict[str, dict[str, Any]] = field(default_factory=dict)
     mutations: list[TreeMutation] = field(default_factory=list)
+    #: The node the last event reset from RUNNING to IDLE (None after any other event):
+    #: its result, if it comes next, ends that activation (``btlog.history.resumes``).
+    halted: int | None = None
 
     def status_of(self, uid: int) -> Status:
         """A node's status (IDLE if it never changed)."""
@@ -75,6 +79,7 @@ class State:
             "retry_attempts": {str(k): v for k, v in self.retry_attempts.items()},
             "last_leaf": self.last_leaf,
             "blackboard": self.blackboard,
+            "halted": self.halted,
         }
 
     @classmethod
@@ -91,6 +96,7 @@ class State:
             last_leaf=data["last_leaf"],
             blackboard=copy.deepcopy(data["blackboard"]),
             mutations=list(mutations),
+            halted=data.get("halted"),
         )
 
 
@@ -130,8 +136,9 @@ class StateProjection(Subscriber):
         state.t_ns = t_ns
         state.tick = tick
         state.status[uid] = status
-        if prev is IDLE:
+        if prev is IDLE and not (status in (SUCCESS, FAILURE) and state.halted == uid):
             state.activation[uid] = seq
+        state.halted = uid if prev is RUNNING and status is IDLE else None
         if status is FAILURE:
             state.last_failure[uid] = seq
             retry = self._retry_parent.get(uid)
@@ -158,6 +165,7 @@ class StateProjection(Subscriber):
         state.seq = seq + 1
         state.t_ns = t_ns
         state.tick = tick
+        state.halted = None
         entries = state.blackboard.setdefault(scope, {})
         if type_name == "unset":
             entries.pop(key, None)
@@ -170,6 +178,7 @@ class StateProjection(Subscriber):
         state.seq = mutation.seq + 1
         state.t_ns = mutation.t_ns
         state.tick = mutation.tick
+        state.halted = None
         state.mutations.append(mutation)
         self._insert(mutation)
 

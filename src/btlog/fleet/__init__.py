@@ -5,8 +5,8 @@ holds each run's read-model tables (the same columns as ``btlog sql``'s tables) 
 under a Hive-partitioned layout, ``LAKE/{table}/domain=…/date=…/*.parquet`` (``run_id`` a
 column), so any engine reads it and a query about one domain or one day opens only those
 folders. Beside the six tables, ``causes`` (every failure of a control node, decorator or
-subtree with its causal leaf, failures by design left out) and ``activations`` (one row per activation of a node) are
-computed once at export.
+subtree with its causal leaf, failures by design left out) and ``activations`` (one row
+per activation of a node) are computed once at export.
 
 - ``btlog.fleet.lake``: export runs into a lake; open a lake in DuckDB (read-only).
 - ``btlog.fleet.derived``: the ``causes`` and ``activations`` of one run.

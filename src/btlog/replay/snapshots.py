@@ -122,6 +122,13 @@ def _latest(name: str, where: str, partition: str, value: str) -> str:
         WHERE v IS NOT NULL)"""
 
 
+#: A change that starts an activation (``btlog.history.resumes``): out of IDLE, and not
+#: the result a node returns right after its own halt (the event before it).
+STARTS_WHERE = """prev_status = 'IDLE' AND NOT (status IN ('SUCCESS', 'FAILURE') AND EXISTS (
+    SELECT 1 FROM transitions h WHERE h.run_id = transitions.run_id
+        AND h.seq = transitions.seq - 1 AND h.uid = transitions.uid
+        AND h.prev_status = 'RUNNING' AND h.status = 'IDLE'))"""
+
 #: The snapshot rows: the state before each boundary ``b`` as ``State.to_json`` writes it
 #: (large blackboard values named by seq in ``blackboard_refs``, see ``snapshot_json``).
 SNAPSHOTS_SQL = (
@@ -129,7 +136,7 @@ SNAPSHOTS_SQL = (
     + ",\n".join(
         (
             _latest("status_at", "true", "uid", "enum_code(status)"),
-            _latest("activation_at", "prev_status = 'IDLE'", "uid", "seq"),
+            _latest("activation_at", STARTS_WHERE, "uid", "seq"),
             _latest("failure_at", "status = 'FAILURE'", "uid", "seq"),
             _latest(
                 "leaf_at", "status <> 'IDLE' AND list_contains($execution, uid)", "run_id", "uid"
@@ -144,6 +151,10 @@ SNAPSHOTS_SQL = (
               FROM blackboard WHERE run_id = $run_id)
         WHERE coalesce(nxt, $n) // $k > seq // $k),
     scopes AS (SELECT DISTINCT b, scope FROM writes),
+    halted_at AS (
+        SELECT seq + 1 AS b, uid AS v FROM transitions
+        WHERE run_id = $run_id AND prev_status = 'RUNNING' AND status = 'IDLE'
+            AND (seq + 1) % $k = 0),
     entries AS (
         SELECT b, scope, json_group_object(key, CASE WHEN big THEN NULL ELSE value END) AS obj
         FROM writes WHERE type <> 'unset' GROUP BY b, scope),
@@ -194,7 +205,7 @@ SNAPSHOTS_SQL = (
             'retry_attempts', coalesce(r.attempts, '{{}}')::JSON,
             'last_leaf', leaf.v,
             'blackboard', coalesce(bb.blackboard, '{{}}'::JSON),
-            'blackboard_refs', rf.refs)::VARCHAR AS state,
+            'blackboard_refs', rf.refs, 'halted', hl.v)::VARCHAR AS state,
         coalesce(wb.block, '[]')::VARCHAR AS write_block
     FROM bounds
     LEFT JOIN last_event l USING (b)
@@ -204,6 +215,7 @@ SNAPSHOTS_SQL = (
     LEFT JOIN maps fl ON fl.b = bounds.b AND fl.field = 'last_failure'
     LEFT JOIN {retry_view} r ON r.b = bounds.b
     LEFT JOIN leaf_at leaf ON leaf.b = bounds.b
+    LEFT JOIN halted_at hl ON hl.b = bounds.b
     LEFT JOIN boards bb ON bb.b = bounds.b
     LEFT JOIN refs rf ON rf.b = bounds.b
     LEFT JOIN write_blocks wb ON wb.b = bounds.b

@@ -17,7 +17,7 @@ import pyarrow as pa
 from btlog.status import STATUS_NAMES
 
 #: The layout of the read model; part of the cache key (bump when a table changes).
-INGEST_VERSION = "4"
+INGEST_VERSION = "5"
 
 SCHEMA = (
     # Status is numbered as BT.CPP numbers it; the ENUM uses the same order.
