@@ -51,10 +51,14 @@ def _port_of(leaf: Node, key: str) -> str:
 def grounds(tree: Tree, leaf: Node, failed: Transition, history: History) -> str:
     """`` (name = value, …)`` for ``leaf``'s FAILURE ``failed`` (see the module
     docstring), or "" when there is nothing to show."""
+    # A leaf writes while it ticks, before its status change of that tick is logged: the
+    # writes of its failing activation come after its change before that activation.
     start = history.last([leaf.uid], ANY_STATUS, 0, failed.seq + 1, starts=True)
     began = failed.seq if start is None else start.seq
+    before = history.last([leaf.uid], ANY_STATUS, 0, began)
+    lo = 0 if before is None else before.seq + 1
     reported: dict[str, str] = {}
-    for write in history.writes_by(leaf.uid, began, failed.seq + 1, 4 * MAX_ITEMS):
+    for write in history.writes_by(leaf.uid, lo, failed.seq + 1, 4 * MAX_ITEMS):
         reported[_port_of(leaf, write.key)] = _shown(write.value)
     items = [f"{name} = {value}" for name, value in reported.items()]
     if not items and leaf.kind == CONDITION:

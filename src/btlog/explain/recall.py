@@ -10,12 +10,13 @@ only, so it is the same live and post hoc.
 from __future__ import annotations
 
 from btlog.explain.causes import because
+from btlog.explain.grounds import grounds
 from btlog.explain.handlers import FallbackHandler, handler_of
 from btlog.explain.words import humanize, is_named, seconds, words
 from btlog.history import ANY_STATUS, COMPLETIONS, History, Transition
 from btlog.state import State
 from btlog.status import FAILURE, IDLE, RUNNING, SUCCESS, Status
-from btlog.tree.model import Node, Tree
+from btlog.tree.model import CONDITION, Node, Tree
 
 #: "When did X last …?": the statuses asked about and the words of the answer.
 EVENTS: dict[str, tuple[tuple[Status, ...], bool, str, str]] = {
@@ -74,10 +75,15 @@ def about(nodes: list[Node], event: str | None, state: State, history: History) 
 
 
 def why_failed(tree: Tree, node: Node, state: State, history: History) -> str:
-    """``I could not {d(X)} because {d(leaf)} failed.`` for X's last FAILURE."""
+    """``I could not {d(X)} because {d(leaf)} failed.`` for X's last FAILURE; for a
+    condition (a check, not something done), ``{d(X)} failed at {t} s`` with its
+    grounds."""
     failed = history.last([node.uid], (FAILURE,), 0, state.seq)
     if failed is None:
         return f"{words(node)} has not failed."
+    if node.kind == CONDITION:  # a check, not something the robot does: its grounds
+        found = grounds(tree, node, failed, history)
+        return f"{words(node)} failed at {seconds(failed.t_ns)} s{found}."
     return f"I could not {words(node)} because {because(tree, node, failed, history)}."
 
 

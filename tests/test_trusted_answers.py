@@ -1,0 +1,406 @@
+"""Answers a robotics engineer can trust on trees written without the paper's framing.
+
+The expectations files in ``tests/data/answers`` pin what the real command line answers on
+a small fetch tree and on two Nav2 stand-ins (the default NavigateToPose tree, and the
+shape Nav2 shipped for several releases whose recoveries sit behind a GoalUpdated check).
+The other tests cover each notion as users meet it: the run's story (outcome, runs of the
+goal, guards), grounded reasons, descriptions, and questions about nodes a tree lacks.
+"""
+
+from __future__ import annotations
+
+import json
+from pathlib import Path
+
+import pytest
+
+from btlog.events import Subscriber
+from btlog.executor.actions import Condition, InputPort, OutputPort, StatefulAction
+from btlog.executor.engine import Executor
+from btlog.explain.questions import answer
+from btlog.explain.story import story
+from btlog.history import LiveHistory
+from btlog.record.recorder import Recorder
+from btlog.replay.database import open_runs
+from btlog.status import FAILURE, RUNNING, SUCCESS
+from btlog.tree.loader import load_tree_text
+from btlog.tree.registry import Registry
+from tests.cli_support import ROOT, assert_bad_input, btlog
+
+DATA = ROOT / "tests" / "data" / "answers"
+NAV2 = ROOT / "trees" / "nav2"
+NODES_MODEL = NAV2 / "nodes_model.xml"
+
+#: (tree, outcomes, nodes model or None, expectations), each run and checked as a user would.
+EXPECTED = {
+    "fetch": (DATA / "fetch-coffee.xml", DATA / "fetch-coffee.yaml", None),
+    "nav2": (NAV2 / "navigate_to_pose.xml", NAV2 / "follow-path-fails-once.yaml", NODES_MODEL),
+    "nav2-recovery-fallbacks": (
+        DATA / "nav2-recovery-fallbacks.xml",
+        DATA / "nav2-recovery-fallbacks.yaml",
+        NODES_MODEL,
+    ),
+}
+EXPECTATIONS = {
+    "fetch": DATA / "fetch-coffee.expect.yaml",
+    "nav2": DATA / "nav2-navigate-to-pose.expect.yaml",
+    "nav2-recovery-fallbacks": DATA / "nav2-recovery-fallbacks.expect.yaml",
+}
+
+
+def _run(tmp_path: Path, case: str, *extra: str) -> Path:
+    tree, outcomes, model = EXPECTED[case]
+    out = tmp_path / f"{case}.mcap"
+    args = ["run", str(tree), "--outcomes", str(outcomes), "-o", str(out), "--quiet", *extra]
+    if model is not None:
+        args += ["--nodes-model", str(model)]
+    done = btlog(*args)
+    assert done.returncode == 0, done.stderr
+    return out
+
+
+@pytest.mark.parametrize("case", sorted(EXPECTED))
+def test_answers_meet_their_expectations(tmp_path: Path, case: str) -> None:
+    recording = _run(tmp_path, case)
+    checked = btlog("check", str(recording), "--expect", str(EXPECTATIONS[case]))
+    assert checked.returncode == 0, checked.stdout + checked.stderr
+    assert ", 0 failed" in checked.stdout
+
+
+def _story(recording: Path, *options: str) -> list[str]:
+    done = btlog("explain", str(recording), *options)
+    assert done.returncode == 0, done.stderr
+    return done.stdout.splitlines()
+
+
+def test_the_nav2_story_tells_the_one_real_failure(tmp_path: Path) -> None:
+    """FollowPath failed once, at 2 s; the replanning checks (IsGoalNearby) that fail by
+    design every second are counted apart, never told as failures; the root, a
+    RecoveryNode that halts itself before returning SUCCESS, ran once."""
+    lines = _story(_run(tmp_path, "nav2"))
+    assert lines[0] == (
+        "Goal: navigate recovery. Outcome: SUCCESS after 5.500 s, 56 ticks, 163 events."
+    )
+    assert lines[1:4] == [
+        "Failures: 1.",
+        "  2.000 s: I could not follow path because follow path failed.",
+        "    fell back to clear local costmap context.",
+    ]
+    assert lines[4].startswith("  (") and "guard checks chose another branch" in lines[4]
+    assert not any("ran 2 times" in line or "times:" in line for line in lines)
+    assert lines[5:] == [
+        "Subgoals:",
+        "  navigate with replanning: SUCCESS in 5.500 s (0.000 s to 5.500 s)",
+        "  recovery fallback: not started",
+    ]
+
+
+def test_the_fetch_story_names_what_is_retried(tmp_path: Path) -> None:
+    lines = _story(_run(tmp_path, "fetch"))
+    assert lines[1:8] == [
+        "Failures: 3.",
+        "  1.000 s: I could not get to kitchen because go to the kitchen failed.",
+        "    fell back to take the stairs.",
+        "  2.000 s: I am retrying for attempt 1 to retry grasp because grasp cup failed.",
+        "    retried (attempt 1 of 2).",
+        "  2.500 s: I am retrying for attempt 2 to retry grasp because grasp cup failed.",
+        "    retried (attempt 2 of 2).",
+    ]
+    assert lines[8:] == [
+        "Subgoals:",
+        "  get to kitchen: SUCCESS in 1.500 s (0.000 s to 1.500 s)",
+        "  grasp cup: SUCCESS in 1.500 s (1.500 s to 3.000 s), 3 attempts, the last in 0.500 s",
+        "  bring coffee: SUCCESS in 0.500 s (3.000 s to 3.500 s)",
+    ]
+
+
+def test_a_run_stopped_while_running_is_not_finished(tmp_path: Path) -> None:
+    recording = _run(tmp_path, "fetch", "--max-ticks", "20")
+    told = json.loads(btlog("explain", str(recording), "--json").stdout)
+    assert told["outcome"] == "not finished (RUNNING)"
+    assert _story(recording)[0].startswith("Goal: fetch coffee. Outcome: not finished (RUNNING)")
+
+
+LOOP = """
+<root BTCPP_format="4" main_tree_to_execute="Patrol">
+  <BehaviorTree ID="Patrol">
+    <Sequence name="patrol">
+      <Action ID="Drive" name="drive to the door"/>
+      <Action ID="Look" name="look around"/>
+    </Sequence>
+  </BehaviorTree>
+</root>
+"""
+
+
+class _Steps(StatefulAction):
+    """Runs for two ticks, then succeeds."""
+
+    def on_start(self):
+        self.left = 2
+        return RUNNING
+
+    def on_running(self):
+        self.left -= 1
+        return RUNNING if self.left else SUCCESS
+
+
+def _looping_run(path: Path, ticks: int) -> tuple:
+    """A BT.CPP program's loop: the tree ticked again after each completion."""
+    registry = Registry()
+    registry.register_leaf(_Steps, "Drive")
+    registry.register_leaf(_Steps, "Look")
+    tree = load_tree_text(LOOP, registry)
+    executor = Executor(tree, registry)
+    recorder = Recorder(path, tree, {"domain": "loop"}, flush_interval=0)
+    live = LiveHistory(tree)
+    executor.subscribe(recorder)
+    executor.subscribe(live)
+    for _ in range(ticks):
+        executor.tick()
+    executor.close()
+    return tree, live
+
+
+def test_a_looping_tree_tells_each_run_of_the_goal(tmp_path: Path) -> None:
+    """Re-runs of the root are runs of the goal of their own, not attempts of its
+    subgoals; the outcome is the last run's status."""
+    path = tmp_path / "loop.mcap"
+    tree, live = _looping_run(path, 14)
+    told = story(live.tree, live.state, live)
+    assert [r.result for r in told.runs] == ["SUCCESS", "SUCCESS", None]
+    assert told.outcome == "not finished (RUNNING)"
+    lines = _story(path)
+    assert lines[1] == "The goal ran 3 times:"
+    assert lines[2].startswith("  1. SUCCESS in ")
+    assert lines[4].startswith("  3. ")
+    assert "Subgoals (in the goal's last run):" in lines
+    assert all("attempts" not in line for line in lines)
+    asked = btlog("ask", str(path), "--at", "end", "How long did drive to the door take?")
+    assert asked.stdout.strip() == "drive to the door took 0.200 s, from 1.000 s to 1.200 s."
+
+
+def test_a_recovery_node_halting_itself_runs_once(tmp_path: Path) -> None:
+    """Nav2's RecoveryNode resets itself before it returns SUCCESS: that result ends its
+    activation, so it took the whole navigation, not no time."""
+    recording = _run(tmp_path, "nav2")
+    asked = btlog("ask", str(recording), "--at", "end", "How long did navigate recovery take?")
+    assert asked.stdout.strip() == "navigate recovery took 5.500 s, from 0.000 s to 5.500 s."
+
+
+# -- grounded reasons --------------------------------------------------------------------
+GROUNDED = """
+<root BTCPP_format="4" main_tree_to_execute="Deliver">
+  <BehaviorTree ID="Deliver">
+    <Sequence name="deliver the parcel">
+      <Script name="battery monitor" code="battery_level := 12"/>
+      <Fallback name="get the parcel there">
+        <Sequence name="drive there">
+          <BatteryOK name="battery OK" level="{battery_level}"/>
+          <FollowPath name="follow path" error_code_id="{follow_error}"/>
+        </Sequence>
+        <FollowPath name="take the long way" error_code_id="{long_error}"/>
+      </Fallback>
+    </Sequence>
+  </BehaviorTree>
+</root>
+"""
+
+
+class BatteryOK(Condition):
+    """Fails below 20 %."""
+
+    ports = {"level": InputPort("int")}
+
+    def check(self):
+        return self.get_input("level") >= 20
+
+
+class FollowPath(StatefulAction):
+    """Reports Nav2's error code 106 ("no valid control"), then fails."""
+
+    ports = {"error_code_id": OutputPort()}
+
+    def on_start(self):
+        self.set_output("error_code_id", 106)
+        return FAILURE
+
+
+def _grounded_tree(xml: str):
+    registry = Registry()
+    registry.register_leaf(BatteryOK)
+    registry.register_leaf(FollowPath)
+    return load_tree_text(xml, registry), registry
+
+
+class _AnswerAtEnd(Subscriber):
+    pass
+
+
+def _record_grounded(path: Path, xml: str) -> LiveHistory:
+    tree, registry = _grounded_tree(xml)
+    executor = Executor(tree, registry)
+    recorder = Recorder(path, tree, {"domain": "grounded"}, flush_interval=0)
+    live = LiveHistory(tree)
+    executor.subscribe(recorder)
+    executor.subscribe(live)
+    executor.run(10)
+    executor.close(teardown=False)
+    return live
+
+
+def _both(path: Path, live: LiveHistory, question: str) -> str:
+    """The live answer at the end, checked equal to the answer from the file alone."""
+    said = answer(live.tree, live.state, question, live).text
+    with open_runs(path, cache=False) as database:
+        run = database.run()
+        tree, state = run.state_at("end")
+        assert answer(tree, state, question, run.history()).text == said
+    return said
+
+
+def test_a_failed_condition_is_grounded_in_what_it_read(tmp_path: Path) -> None:
+    path = tmp_path / "grounded.mcap"
+    live = _record_grounded(path, GROUNDED)
+    assert _both(path, live, "Why did drive there fail?") == (
+        "I could not drive there because battery OK failed "
+        "(battery_level = 12, written by battery monitor at 0.000 s)."
+    )
+    assert _both(path, live, "Why did battery OK fail?") == (
+        "battery OK failed at 0.000 s (battery_level = 12, written by battery monitor at 0.000 s)."
+    )
+
+
+def test_a_failed_action_is_grounded_in_what_it_reported(tmp_path: Path) -> None:
+    path = tmp_path / "grounded.mcap"
+    live = _record_grounded(
+        path, GROUNDED.replace('code="battery_level := 12"', 'code="battery_level := 80"')
+    )
+    assert _both(path, live, "What went wrong?") == (
+        "I could not get the parcel there because I was unable to drive there as follow path "
+        "failed (error_code_id = 106)."
+    )
+    assert _both(path, live, "Why didn't you follow path?") == (
+        "I tried to follow path, but it failed (error_code_id = 106)."
+    )
+    assert _both(path, live, "Why did get the parcel there fail?") == (
+        "I could not get the parcel there because take the long way failed (error_code_id = 106)."
+    )
+
+
+def test_grounds_are_bounded_and_values_are_shown_as_json(tmp_path: Path) -> None:
+    long = "x" * 500
+    xml = GROUNDED.replace('code="battery_level := 12"', f"code=\"battery_level := '{long}'\"")
+    xml = xml.replace('InputPort("int")', 'InputPort("str")')
+    path = tmp_path / "grounded.mcap"
+
+    class Picky(BatteryOK):
+        ports = {"level": InputPort("str")}
+
+        def check(self):
+            return False
+
+    tree, registry = _grounded_tree(xml)
+    registry.register_leaf(Picky, "BatteryOK")
+    tree = load_tree_text(xml, registry)
+    executor = Executor(tree, registry)
+    live = LiveHistory(tree)
+    executor.subscribe(Recorder(path, tree, {"domain": "grounded"}, flush_interval=0))
+    executor.subscribe(live)
+    executor.run(5)
+    executor.close(teardown=False)
+    said = answer(live.tree, live.state, "Why did battery OK fail?", live).text
+    assert said.startswith("battery OK failed at 0.000 s (battery_level = xxx")
+    assert len(said) < 200 and "…" in said
+
+
+# -- descriptions ------------------------------------------------------------------------
+def test_descriptions_give_answers_their_words_live_and_post_hoc(tmp_path: Path) -> None:
+    words = tmp_path / "words.yaml"
+    words.write_text(
+        "NavigateRecovery: navigate to the goal\n"
+        "ClearLocalCostmap-Context: clear the local costmap\n"
+        "FollowPath: follow the path\n",
+        encoding="utf-8",
+    )
+    recording = _run(
+        tmp_path, "nav2", "--descriptions", str(words), "--ask", "2.2s=What are you doing?"
+    )
+    asked = btlog("ask", str(recording), "--at", "2.2s", "Why are you doing this?")
+    assert asked.stdout.strip() == "I clear the local costmap in order to follow the path."
+    goal = btlog("ask", str(recording), "--at", "2.2s", "What is your goal?")
+    assert goal.stdout.strip() == "My goal is to navigate to the goal."
+    rows = btlog("sql", str(recording), "SELECT metadata FROM runs", "--format", "json")
+    metadata = json.loads(json.loads(rows.stdout)[0]["metadata"])
+    assert json.loads(metadata["descriptions"])["FollowPath"] == "follow the path"
+    # a file given post hoc goes over what was recorded
+    other = tmp_path / "other.yaml"
+    other.write_text("NavigateRecovery: reach the goal pose\nNoSuchNode: nothing\n")
+    again = btlog(
+        "ask", str(recording), "--at", "2.2s", "What is your goal?", "--descriptions", str(other)
+    )
+    assert again.stdout.strip() == "My goal is to reach the goal pose."
+    assert "'NoSuchNode' names no node" in again.stderr
+
+
+def test_a_description_attribute_of_the_xml_is_the_nodes_words(tmp_path: Path) -> None:
+    tree = tmp_path / "described.xml"
+    tree.write_text(
+        (DATA / "fetch-coffee.xml")
+        .read_text()
+        .replace('name="grasp cup"', 'name="grasp cup" _description="pick the cup up"')
+        .replace(
+            '<BehaviorTree ID="FetchCoffee">',
+            '<BehaviorTree ID="FetchCoffee" _description="bring me a coffee">',
+        ),
+        encoding="utf-8",
+    )
+    out = tmp_path / "described.mcap"
+    ran = btlog(
+        "run", str(tree), "--outcomes", str(DATA / "fetch-coffee.yaml"), "-o", str(out), "--quiet"
+    )
+    assert ran.returncode == 0, ran.stderr
+    assert btlog("ask", str(out), "--at", "2.2s", "What are you doing?").stdout.strip() == (
+        "I pick the cup up."
+    )
+    assert btlog("ask", str(out), "--at", "2.2s", "What is your goal?").stdout.strip() == (
+        "My goal is to bring me a coffee."
+    )
+
+
+def test_a_bad_descriptions_file_is_one_line(tmp_path: Path) -> None:
+    bad = tmp_path / "bad.yaml"
+    bad.write_text("FollowPath:\n  - not a phrase\n", encoding="utf-8")
+    tree, outcomes, _ = EXPECTED["fetch"]
+    done = btlog(
+        "run",
+        str(tree),
+        "--outcomes",
+        str(outcomes),
+        "--descriptions",
+        str(bad),
+        "-o",
+        str(tmp_path / "x.mcap"),
+    )
+    assert_bad_input(done, "bad.yaml:2", "FollowPath")
+    assert not (tmp_path / "x.mcap").exists()
+
+
+# -- nodes a question names --------------------------------------------------------------
+def test_a_node_the_tree_lacks_is_bad_input_like_an_unknown_question(tmp_path: Path) -> None:
+    recording = _run(tmp_path, "fetch")
+    for question in ("Why did teleport fail?", "Can you teleport?"):
+        done = btlog("ask", str(recording), "--at", "end", question)
+        assert_bad_input(done, 'Sorry. I don\'t know "teleport".')
+    unknown = btlog("ask", str(recording), "--at", "end", "Are you a teapot?")
+    assert unknown.returncode == 2
+    known = btlog("ask", str(recording), "--at", "end", "Can you fetch coffee?")
+    assert known.returncode == 0
+    assert known.stdout.strip() == 'Sorry. I cannot redo "fetch coffee".'
+
+
+def test_a_name_an_answer_prints_is_understood_in_a_question(tmp_path: Path) -> None:
+    recording = _run(tmp_path, "nav2")
+    for name in ("ClearLocalCostmap-Context", "clear local costmap context"):
+        done = btlog("ask", str(recording), "--at", "end", f"When did {name} last start?")
+        assert done.stdout.strip() == "clear local costmap context last started at 2.000 s."
