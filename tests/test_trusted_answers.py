@@ -11,10 +11,10 @@ from __future__ import annotations
 
 import json
 from pathlib import Path
+from typing import ClassVar
 
 import pytest
 
-from btlog.events import Subscriber
 from btlog.executor.actions import Condition, InputPort, OutputPort, StatefulAction
 from btlog.executor.engine import Executor
 from btlog.explain.questions import answer
@@ -145,7 +145,7 @@ class _Steps(StatefulAction):
         return RUNNING if self.left else SUCCESS
 
 
-def _looping_run(path: Path, ticks: int) -> tuple:
+def _looping_run(path: Path, ticks: int) -> LiveHistory:
     """A BT.CPP program's loop: the tree ticked again after each completion."""
     registry = Registry()
     registry.register_leaf(_Steps, "Drive")
@@ -159,14 +159,14 @@ def _looping_run(path: Path, ticks: int) -> tuple:
     for _ in range(ticks):
         executor.tick()
     executor.close()
-    return tree, live
+    return live
 
 
 def test_a_looping_tree_tells_each_run_of_the_goal(tmp_path: Path) -> None:
     """Re-runs of the root are runs of the goal of their own, not attempts of its
     subgoals; the outcome is the last run's status."""
     path = tmp_path / "loop.mcap"
-    tree, live = _looping_run(path, 14)
+    live = _looping_run(path, 14)
     told = story(live.tree, live.state, live)
     assert [r.result for r in told.runs] == ["SUCCESS", "SUCCESS", None]
     assert told.outcome == "not finished (RUNNING)"
@@ -210,7 +210,7 @@ GROUNDED = """
 class BatteryOK(Condition):
     """Fails below 20 %."""
 
-    ports = {"level": InputPort("int")}
+    ports: ClassVar = {"level": InputPort("int")}
 
     def check(self):
         return self.get_input("level") >= 20
@@ -219,7 +219,7 @@ class BatteryOK(Condition):
 class FollowPath(StatefulAction):
     """Reports Nav2's error code 106 ("no valid control"), then fails."""
 
-    ports = {"error_code_id": OutputPort()}
+    ports: ClassVar = {"error_code_id": OutputPort()}
 
     def on_start(self):
         self.set_output("error_code_id", 106)
@@ -231,10 +231,6 @@ def _grounded_tree(xml: str):
     registry.register_leaf(BatteryOK)
     registry.register_leaf(FollowPath)
     return load_tree_text(xml, registry), registry
-
-
-class _AnswerAtEnd(Subscriber):
-    pass
 
 
 def _record_grounded(path: Path, xml: str) -> LiveHistory:
@@ -295,7 +291,7 @@ def test_grounds_are_bounded_and_values_are_shown_as_json(tmp_path: Path) -> Non
     path = tmp_path / "grounded.mcap"
 
     class Picky(BatteryOK):
-        ports = {"level": InputPort("str")}
+        ports: ClassVar = {"level": InputPort("str")}
 
         def check(self):
             return False
