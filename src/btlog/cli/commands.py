@@ -24,16 +24,14 @@ from btlog.explain.questions import explain as explain_all
 from btlog.outputs import refuse_overwrite
 from btlog.render.escape import safe
 from btlog.render.terminal import blackboard_lines, format_ns, make_console, tree_lines
-from btlog.replay.moments import TICK, parse_moment
 from btlog.runner import RunConfig, execute
-from btlog.state import State
 from btlog.status import Status
 from btlog.tree.loader import load_tree
 
 if TYPE_CHECKING:
     from btlog.replay.database import Run, RunDatabase
+    from btlog.replay.moments import Resolved
     from btlog.runner import LiveQuestion
-    from btlog.state import State
 
 
 def _print_json(data: object) -> None:
@@ -133,27 +131,23 @@ def _open_run(path: str) -> tuple[RunDatabase, Run]:
 
 @contextmanager
 def _moment(path: str, moment: str) -> Iterator[tuple]:
-    """(run, tree, state, time) at a moment of a recording, while its read model is
-    open."""
+    """(run, tree, state, resolved moment) at a moment of a recording, while its read
+    model is open."""
     database, run = _open_run(path)
     try:
         resolved = run.resolve(moment)
         tree, state = run.state_after(resolved.count)
-        yield run, tree, state, resolved.t_ns
+        yield run, tree, state, resolved
     finally:
         database.close()
 
 
-def _moment_json(state: State, moment: str) -> dict:
-    return {"at": moment, "seq": state.seq, "t_ns": state.t_ns, "tick": state.tick}
-
-
 def ask(args: Namespace) -> int:
     """``btlog ask``: one answer at a moment (Q7 shows the tree it would give)."""
-    with _moment(args.run, args.at) as (run, tree, state, at_ns):
-        result = answer(tree, state, args.question, run.history(), at_ns)
+    with _moment(args.run, args.at) as (run, tree, state, moment):
+        result = answer(tree, state, args.question, run.history(), moment.t_ns)
     if args.json:
-        _print_json({**result.to_json(), "moment": _moment_json(state, args.at)})
+        _print_json({**result.to_json(), "moment": moment.to_json()})
         return 0
     print(safe(result.text))
     if result.insertion is not None:
@@ -171,13 +165,13 @@ def explain(args: Namespace) -> int:
     recording says is missing."""
     if args.at is None:
         return _story(args)
-    with _moment(args.run, args.at) as (run, tree, state, _at_ns):
+    with _moment(args.run, args.at) as (run, tree, state, moment):
         answers = explain_all(tree, state, run.history())
         notes = [run.info.metadata["incomplete"]] if run.info.metadata.get("incomplete") else []
     if args.json:
         _print_json(
             {
-                "moment": _moment_json(state, args.at),
+                "moment": moment.to_json(),
                 "answers": [a.to_json() for a in answers],
                 "notes": notes,
             }
@@ -194,7 +188,7 @@ def _story(args: Namespace) -> int:
     """``btlog explain REC``: the whole run, top down."""
     from btlog.explain.story import story
 
-    with _moment(args.run, "end") as (run, tree, state, _at_ns):
+    with _moment(args.run, "end") as (run, tree, state, _moment_at):
         told = story(tree, state, run.history())
         notes = [run.info.metadata["incomplete"]] if run.info.metadata.get("incomplete") else []
     if args.json:
@@ -211,7 +205,7 @@ def show(args: Namespace) -> int:
     """``btlog show``: the tree with each node's status at a moment."""
     if args.html:
         refuse_overwrite(args.html, [args.run], "--html")
-    with _moment(args.run, args.at) as (run, tree, state, at_ns):
+    with _moment(args.run, args.at) as (run, tree, state, moment):
         current = {n.uid for n in current_nodes(tree, state)}
         answers = explain_all(tree, state, run.history()) if args.html else []
     if args.html:
@@ -222,7 +216,7 @@ def show(args: Namespace) -> int:
         print(safe(args.html))
         return 0
     console = make_console(args.plain)
-    console.print(moment_header(args.at, state, at_ns), highlight=False)
+    console.print(moment_header(moment), highlight=False)
     for line in tree_lines(tree, state, current):
         console.print(line)
     if args.blackboard:
@@ -232,13 +226,15 @@ def show(args: Namespace) -> int:
     return 0
 
 
-def moment_header(when: str, state: State, at_ns: int) -> str:
-    """``at WHEN: seq S, tick T, TIME``, naming the moment exactly: S is the last event
-    applied, T the moment's tick (N itself for ``tick:N``), TIME the moment's time."""
-    moment = parse_moment(when)
-    last = f"seq {state.seq - 1}" if state.seq else "before the first event"
-    tick = moment.value if moment.kind == TICK else state.tick
-    return f"at {safe(when)}: {last}, tick {tick}, {format_ns(at_ns)}"
+def moment_header(moment: Resolved) -> str:
+    """``at WHEN: seq S, tick T, TIME (last event at L)``: the moment as every header
+    names it (``btlog.replay.moments.Resolved``): S the last event applied, T the
+    moment's tick, TIME the moment's own time, L the last event's when it differs."""
+    last = "before the first event" if moment.seq is None else f"seq {moment.seq}"
+    head = f"at {safe(moment.moment.text)}: {last}, tick {moment.tick}, {format_ns(moment.t_ns)}"
+    if moment.last_event_t_ns is not None and moment.last_event_t_ns != moment.t_ns:
+        head += f" (last event at {format_ns(moment.last_event_t_ns)})"
+    return head
 
 
 def _no_blackboard(path: str) -> str:
