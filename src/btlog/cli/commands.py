@@ -16,7 +16,7 @@ from typing import TYPE_CHECKING
 from rich.progress import BarColumn, Progress, TextColumn, TimeElapsedColumn
 from rich.text import Text
 
-from btlog.errors import EXIT_BAD_INPUT, EXIT_OK
+from btlog.errors import EXIT_OK
 from btlog.explain.hierarchy import current_nodes
 from btlog.explain.insertion import apply_to_copy
 from btlog.explain.questions import Answer, answer
@@ -56,14 +56,27 @@ def run(args: Namespace) -> int:
         flush_interval=args.flush_interval,
     )
     console = make_console()
+    progress: Progress | None = None
+    ticks = [0]  # the last tick begun
+
+    def on_tick(tick: int) -> None:
+        ticks[0] = tick
+        if progress is not None:
+            progress.update(progress.task_ids[0], completed=tick)
 
     def on_answer(question: LiveQuestion, result: Answer, seq: int) -> None:
-        if not args.quiet:
-            print(f"[{safe(question.when)}] {safe(question.question)}", flush=True)
-            print(f"  {safe(result.text)}", flush=True)
+        if args.quiet:
+            return
+        lines = f"[{safe(question.when)}] {safe(question.question)}\n  {safe(result.text)}"
+        if progress is None or not sys.stdout.isatty():
+            print(lines, flush=True)
+            return
+        # on the terminal, above the bar, which first shows the tick of the answer
+        progress.update(progress.task_ids[0], completed=ticks[0])
+        progress.refresh()
+        progress.console.print(lines, highlight=False, markup=False)
 
-    interactive = sys.stderr.isatty() and not args.quiet
-    if interactive:
+    if sys.stderr.isatty() and not args.quiet:
         progress = Progress(
             TextColumn("running"),
             BarColumn(),
@@ -71,15 +84,12 @@ def run(args: Namespace) -> int:
             TimeElapsedColumn(),
             console=make_console(stderr=True),
             transient=True,
+            redirect_stdout=False,
+            redirect_stderr=False,
         )
         with progress:
-            task = progress.add_task("run", total=args.max_ticks)
-            result = execute(
-                config,
-                args.output,
-                on_answer,
-                on_tick=lambda tick: progress.update(task, completed=tick),
-            )
+            progress.add_task("run", total=args.max_ticks)
+            result = execute(config, args.output, on_answer, on_tick=on_tick)
     else:
         result = execute(config, args.output, on_answer)
     if args.quiet:
@@ -99,9 +109,9 @@ def run(args: Namespace) -> int:
         )
     for warning in result.warnings:
         print(f"btlog run: warning: {safe(warning)}", file=sys.stderr)
-    for refusal in result.refused:
-        print(f"btlog run: {safe(refusal)} (not answered)", file=sys.stderr)
-    return EXIT_BAD_INPUT if result.refused else EXIT_OK
+    for refusal in result.refused:  # the run is recorded: its moment was outside it
+        print(f"btlog run: warning: {safe(refusal)} (not answered)", file=sys.stderr)
+    return EXIT_OK
 
 
 # -- questions ---------------------------------------------------------------------------
@@ -312,7 +322,7 @@ def sql(args: Namespace) -> int:
         )
     elif args.format == "csv":
         buffer = io.StringIO()
-        writer = csv.writer(buffer)
+        writer = csv.writer(buffer, lineterminator="\n")  # a Unix tool's lines, not CRLF
         writer.writerow([safe(c) for c in columns])
         writer.writerows([["" if v is None else safe(v) for v in row] for row in rows])
         sys.stdout.write(buffer.getvalue())
