@@ -6,15 +6,12 @@ the live progress bar in a real terminal."""
 from __future__ import annotations
 
 import json
-import os
-import pty
-import select
 import subprocess
 from pathlib import Path
 
 import pytest
 
-from tests.cli_support import ROOT, btlog, btlog_command, btlog_environment
+from tests.cli_support import ROOT, Terminal, btlog, btlog_command, btlog_environment
 
 RECORDINGS = ROOT / "recordings"
 CHUCK = RECORDINGS / "kitting-look-at-chuck-fails.mcap"
@@ -101,40 +98,12 @@ def test_fleet_lists_nodes_by_path_with_completions(copies: Path, tmp_path: Path
     assert row.split("│")[3].strip() == str(look["completed"])
 
 
-def _pty_output(args: list[str], cwd: Path) -> str:
-    """What ``btlog ARGS`` writes to a real terminal (stdout and stderr both on it)."""
-    leader, follower = pty.openpty()
-    env = btlog_environment({"COLUMNS": "100", "TERM": "xterm"})
-    env.pop("NO_COLOR", None)
-    process = subprocess.Popen(
-        btlog_command(*args), cwd=cwd, env=env, stdin=follower, stdout=follower,
-        stderr=follower, close_fds=True,
-    )  # fmt: skip
-    os.close(follower)
-    chunks = []
-    try:
-        while True:
-            ready, _, _ = select.select([leader], [], [], 60)
-            if not ready:
-                break
-            try:
-                data = os.read(leader, 65536)
-            except OSError:  # the terminal closed: the process has ended
-                break
-            if not data:
-                break
-            chunks.append(data)
-    finally:
-        os.close(leader)
-        process.wait(timeout=60)
-    assert process.returncode == 0, b"".join(chunks).decode(errors="replace")
-    return b"".join(chunks).decode(errors="replace")
-
-
 def test_the_progress_bar_shows_the_tick_of_a_live_answer(tmp_path: Path) -> None:
     kitting = str(ROOT / "trees" / "kitting.xml")
     args = ["run", kitting, "--domain", "kitting", "--ask", "30s=What are you doing?"]
-    output = _pty_output([*args, "-o", "k.mcap"], tmp_path)
+    terminal = Terminal(*args, "-o", "k.mcap", cwd=tmp_path, columns=100)
+    output = terminal.finish()
+    assert terminal.process.returncode == 0, output
     before_answer = output.split("[30s] What are you doing?")[0]
     assert "tick 301" in before_answer  # the tick the answer is given before
     assert "tick 0 " not in before_answer.rsplit("running", 1)[-1]

@@ -230,24 +230,6 @@ def test_timeline_node_by_type_matches_every_node_of_it(copies: Path) -> None:
         assert name in found.stdout
 
 
-def test_replay_takes_arrows_and_enter_and_keeps_steps_on_one_screen(copies: Path) -> None:
-    script = "n 5\n\n\x1b[C\x1b[C\n\x1b[D\n\x1b[B\nq\n"
-    replay = subprocess.run(
-        [sys.executable, "-m", "btlog.cli.main", "replay", "kitting-look-at-chuck-fails.mcap",
-         "--plain", "--script", "-"],
-        input=script, cwd=copies, capture_output=True, text=True, check=False, timeout=60,
-        env={**os.environ, "NO_COLOR": "1"},
-    )  # fmt: skip
-    assert replay.returncode == 0, replay.stderr
-    assert "unknown command" not in replay.stdout
-    steps = replay.stdout.split("── event ")[1:]
-    positions = [int(step.split("/")[0]) for step in steps]
-    assert positions == [1, 6, 11, 13, 12, positions[-1]] and positions[-1] > 12
-    assert all(len(step.splitlines()) <= 24 for step in steps)
-    assert "look at chuck" not in steps[1]  # the whole tree is not reprinted
-    assert "move to see chuck #6  IDLE -> RUNNING" in steps[1]  # the events stepped over
-
-
 def test_kitting_conditions_answer_at_once(tmp_path: Path) -> None:
     (tmp_path / "w.xml").write_text(
         '<root BTCPP_format="4"><BehaviorTree ID="M"><ReactiveSequence name="watch">'

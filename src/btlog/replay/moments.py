@@ -173,6 +173,13 @@ class RunExtent:
         )
 
 
+def time_moment(t_ns: int) -> str:
+    """The moment text of a time since the start, exact and short: ``8.4s``, ``0s``."""
+    whole, fraction = divmod(t_ns, 1_000_000_000)
+    digits = f"{fraction:09d}".rstrip("0")
+    return f"{whole}.{digits}s" if digits else f"{whole}s"
+
+
 def parse_moment(text: str | Moment) -> Moment:
     """Parse ``--at WHEN`` (see the module docstring); MomentError if it is no moment."""
     if isinstance(text, Moment):
