@@ -44,13 +44,13 @@ def test_arrow_keys_are_keystrokes_and_enter_repeats(chuck: Path) -> None:
         assert header_after(terminal, RIGHT)[0] == 2  # no Enter needed
         assert header_after(terminal, RIGHT)[0] == 3
         assert header_after(terminal, LEFT)[0] == 2
-        count, tick, _t = header_after(terminal, DOWN)
+        _count, tick, _t = header_after(terminal, DOWN)
         assert tick == 2
         assert header_after(terminal, "\r")[1] == 3  # Enter repeats ↓
         assert header_after(terminal, UP)[1] == 2
         # ↓ then a typed command: the arrow is a keystroke, not text on the line
         header_after(terminal, DOWN)
-        count, tick, seconds = header_after(terminal, "g 10.4s\r")
+        _count, tick, seconds = header_after(terminal, "g 10.4s\r")
         assert seconds == 10.4 and "unknown command" not in terminal.output
         terminal.send("q\r")
         terminal.finish()
