@@ -173,6 +173,11 @@ class RunExtent:
         )
 
 
+def before_start() -> Resolved:
+    """The moment before the run's first event (the viewer's ``#seq=-1``)."""
+    return Resolved(Moment(SEQ, -1, "seq:-1"), 0, 0, 0, None)
+
+
 def time_moment(t_ns: int) -> str:
     """The moment text of a time since the start, exact and short: ``8.4s``, ``0s``."""
     whole, fraction = divmod(t_ns, 1_000_000_000)
