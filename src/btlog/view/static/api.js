@@ -224,7 +224,8 @@ class EmbeddedSource {
     const data = JSON.parse(document.getElementById("btlog-data").textContent);
     this.runs = data.runs.map((run) => new EmbeddedRun(run));
     this.info = { runs: this.runs.map((r) => r.meta), diff: data.diff, patterns: data.patterns,
-      questions: data.questions, can_answer: data.can_answer, report: data.report };
+      questions: data.questions, can_answer: data.can_answer, report: data.report,
+      files: data.files };
     return this.info;
   }
   async state(run, request) {
