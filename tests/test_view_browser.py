@@ -237,7 +237,6 @@ def test_dragging_the_timeline_scrubs(page, served, database) -> None:
 def test_the_ask_box_gives_btlog_asks_answers(page, served, chuck) -> None:
     page.goto(served.url + "#t=10.4s")
     page.wait_for_selector(".pane[data-ready='1']")
-    count = int(page.locator(".pane").get_attribute("data-count"))
     for question in ("What went wrong?", "Can you look at chuck?"):
         page.fill(".ask input", question)
         page.press(".ask input", "Enter")
