@@ -19,7 +19,7 @@ from btlog.record.recorder import GROUP_NS
 from btlog.runner import RunConfig, execute
 
 ROOT = Path(__file__).resolve().parents[1]
-OLD_RECORDING = ROOT / "recordings" / "kitting-ok.mcap"
+OLD_RECORDING = ROOT / "tests" / "data" / "v1-kitting-ok.mcap"  # schema version 1
 
 
 @pytest.fixture(scope="module")
