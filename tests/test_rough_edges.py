@@ -195,7 +195,7 @@ def test_validate_makes_the_checks_run_makes(tmp_path: Path) -> None:
 
 @pytest.mark.parametrize(
     ("moment", "header"),
-    [("seq:33", "at seq:33: seq 33, tick "), ("tick:300", ", tick 300, "), ("end", ": seq 256,")],
+    [("seq:33", "at seq:33: seq 33, tick "), ("tick:300", ", tick 300, "), ("end", ": seq 255,")],
 )
 def test_show_headers_name_the_moment_exactly(copies: Path, moment: str, header: str) -> None:
     shown = btlog("show", "kitting-look-at-chuck-fails.mcap", "--at", moment, cwd=copies)

@@ -33,7 +33,7 @@ def app(chuck: Path):
     database.close()
 
 
-@pytest.mark.parametrize("count", [0, 1, 40, 41, 150, 257])
+@pytest.mark.parametrize("count", [0, 1, 40, 41, 150, 256])
 def test_the_state_json_is_the_read_models_state(app: ViewerApp, count: int) -> None:
     run = app.views[0].run
     tree, state = run.state_after(count)
@@ -49,11 +49,11 @@ def test_the_state_json_is_the_read_models_state(app: ViewerApp, count: int) -> 
 
 
 def test_every_blackboard_entry_names_its_writer(app: ViewerApp) -> None:
-    entries = app.api("/api/run/0/state", {"count": "257"})["blackboard"]
+    entries = app.api("/api/run/0/state", {"count": "256"})["blackboard"]
     assert entries, "the kitting run writes poses"
     nodes = app.views[0].tree.nodes
     for entry in entries:
-        assert entry["writer"] in nodes and 0 <= entry["seq"] < 257
+        assert entry["writer"] in nodes and 0 <= entry["seq"] < 256
 
 
 def test_questions_get_btlog_asks_answers_with_the_runs_history(app: ViewerApp) -> None:
@@ -144,7 +144,7 @@ def test_the_server_is_loopback_only_and_read_only(app: ViewerApp) -> None:
         assert host == "127.0.0.1"
         base = f"http://127.0.0.1:{port}"
         status, body = _get(base + "/api/runs")
-        assert status == 200 and json.loads(body)["runs"][0]["events"] == 257
+        assert status == 200 and json.loads(body)["runs"][0]["events"] == 256
         assert _get(base + "/api/runs", host=f"attacker.example:{port}")[0] == 403
         assert _get(base + "/static/../model.py")[0] == 404
         assert _get(base + "/static/app.js")[0] == 200
@@ -177,7 +177,7 @@ def test_an_exported_page_holds_recorded_markup_as_data_only(tmp_path: Path) -> 
 
 
 def test_a_run_too_large_to_export_says_to_use_view(app: ViewerApp) -> None:
-    with pytest.raises(ExportTooLarge, match=r"257 events.*btlog view"):
+    with pytest.raises(ExportTooLarge, match=r"256 events.*btlog view"):
         export_data(app.views, None, None, limit=100)
 
 

@@ -19,6 +19,7 @@ import pytest
 from btlog.replay.database import RunDatabase, open_runs
 from tests.view_support import (
     ARTIFACTS,
+    CHROMIUM,
     CHUCK,
     HOSTILE_NAME,
     RECORDINGS,
@@ -26,18 +27,9 @@ from tests.view_support import (
     btlog,
     copy_recording,
     hostile_recording,
+    launched_chromium,
 )
 
-CHROMIUM = Path("/usr/bin/chromium")
-ARGS = [
-    "--headless",
-    "--no-sandbox",
-    "--disable-gpu",
-    "--disable-background-networking",
-    "--disable-component-update",
-    "--disable-sync",
-    "--no-first-run",
-]
 pytestmark = pytest.mark.skipif(
     not CHROMIUM.exists(), reason="chromium is not installed (apt-get install -y chromium)"
 )
@@ -48,12 +40,7 @@ STATUSES = """pane => Array.from(document.querySelectorAll(
 
 @pytest.fixture(scope="module")
 def browser() -> Iterator:
-    from playwright.sync_api import sync_playwright
-
-    with sync_playwright() as playwright:
-        launched = playwright.chromium.launch(executable_path=str(CHROMIUM), args=ARGS)
-        yield launched
-        launched.close()
+    yield from launched_chromium()
 
 
 @pytest.fixture(scope="module")
@@ -121,7 +108,7 @@ def test_deep_links_show_the_read_models_statuses(page, served, database) -> Non
         ("#t=10.4s", "10.4s"),
         ("#t=30s", "30s"),
         ("#seq=0", "seq:0"),
-        ("#seq=256", "end"),
+        ("#seq=255", "seq:255"),
     ]:
         page.evaluate("link => { location.hash = link; }", link)
         resolved = run.resolve(moment)

@@ -12,14 +12,16 @@ from pathlib import Path
 
 import pytest
 
-from tests.test_view_browser import ARGS, CHROMIUM, screenshot
+from tests.test_view_browser import screenshot
 from tests.view_support import (
+    CHROMIUM,
     CHUCK,
     RECORDINGS,
     ROOT,
     Served,
     btlog,
     copy_recording,
+    launched_chromium,
     wide_recording,
 )
 
@@ -32,19 +34,15 @@ GEOMETRY = """pane => {
     return [r.left - box.left, r.top - box.top, r.right - box.left, r.bottom - box.top];
   });
   const labels = [...root.querySelectorAll("g.node:not(.absent) text.name, " +
-    "g.node:not(.absent) text.type")].map((t) => t.getBoundingClientRect().height);
+    "g.node:not(.absent) text.type")].map((t) =>   // the font size as drawn on the screen
+    parseFloat(getComputedStyle(t).fontSize) * t.getScreenCTM().a);
   return { width: box.width, height: box.height, nodes, labels };
 }"""
 
 
 @pytest.fixture(scope="module")
 def browser() -> Iterator:
-    from playwright.sync_api import sync_playwright
-
-    with sync_playwright() as playwright:
-        launched = playwright.chromium.launch(executable_path=str(CHROMIUM), args=ARGS)
-        yield launched
-        launched.close()
+    yield from launched_chromium()
 
 
 @pytest.fixture(scope="module")

@@ -6,12 +6,36 @@ import os
 import shutil
 import subprocess
 import sys
+from collections.abc import Iterator
 from pathlib import Path
 
 ROOT = Path(__file__).resolve().parents[1]
 RECORDINGS = ROOT / "recordings"
 CHUCK = RECORDINGS / "kitting-look-at-chuck-fails.mcap"
 ARTIFACTS = Path(os.environ.get("BTLOG_ARTIFACTS", ROOT / "tmp" / "artifacts"))
+#: Debian's chromium, which Playwright drives (``playwright install`` is never needed).
+CHROMIUM = Path("/usr/bin/chromium")
+CHROMIUM_ARGS = [
+    "--headless",
+    "--no-sandbox",
+    "--disable-gpu",
+    "--disable-background-networking",
+    "--disable-component-update",
+    "--disable-sync",
+    "--no-first-run",
+]
+
+
+def launched_chromium() -> Iterator:
+    """A headless chromium driven by Playwright, closed when the generator ends (the
+    body of the browser tests' ``browser`` fixture)."""
+    from playwright.sync_api import sync_playwright
+
+    with sync_playwright() as playwright:
+        launched = playwright.chromium.launch(executable_path=str(CHROMIUM), args=CHROMIUM_ARGS)
+        yield launched
+        launched.close()
+
 
 #: A tree whose names and values try to be markup.
 HOSTILE_TREE = """<root BTCPP_format="4" main_tree_to_execute="Main">

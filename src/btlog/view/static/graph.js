@@ -9,7 +9,7 @@
 
 const SVG_NS = "http://www.w3.org/2000/svg";
 const NAME_PX = 13, TYPE_PX = 12, MIN_LABEL_PX = 11;
-const BOX_H = 40, MIN_W = 84, MAX_W = 210, PAD_X = 22, GAP_X = 12, GAP_Y = 30;
+const BOX_H = 40, MIN_W = 80, MAX_W = 190, PAD_X = 20, GAP_X = 10, GAP_Y = 30;
 /** The smallest zoom at which the smallest label is MIN_LABEL_PX tall, and the largest. */
 const MIN_K = MIN_LABEL_PX / TYPE_PX, MAX_FIT_K = 1.3;
 
