@@ -319,3 +319,25 @@ def test_two_runs_side_by_side_aligned_as_diff(page, folder) -> None:
         screenshot(page, "view-two-runs.png")
     finally:
         server.stop()
+
+
+def test_the_export_resolves_moments_as_btlog_does(browser, chuck, database, folder) -> None:
+    """The exported page resolves moments in the browser (api.js): the same seq, tick
+    and time as ``btlog.replay.moments`` for every form a deep link takes."""
+    exported = folder / "moments.html"
+    assert btlog("view", str(chuck), "--export", str(exported)).returncode == 0
+    context = browser.new_context(offline=True, viewport={"width": 1400, "height": 900})
+    page = context.new_page()
+    run = database.run()
+    try:
+        for kind, value in [("seq", "40"), ("tick", "300"), ("t", "12s"), ("t", "10.4s"),
+                            ("t", "-2s"), ("t", "1500ms"), ("tick", "0"), ("t", "29.95")]:  # fmt: skip
+            moment = run.resolve(f"{kind}:{value}" if kind != "t" else value)
+            page.goto(f"{exported.as_uri()}#{kind}={value}")
+            at_count(page, moment.count)
+            pane = page.locator(".pane")
+            shown = [pane.get_attribute(k) for k in ("data-seq", "data-tick", "data-t-ns")]
+            seq = -1 if moment.seq is None else moment.seq
+            assert shown == [str(seq), str(moment.tick), str(moment.t_ns)], (kind, value)
+    finally:
+        context.close()
