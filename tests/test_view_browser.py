@@ -330,8 +330,9 @@ def test_the_export_resolves_moments_as_btlog_does(browser, chuck, database, fol
     page = context.new_page()
     run = database.run()
     try:
-        for kind, value in [("seq", "40"), ("tick", "300"), ("t", "12s"), ("t", "10.4s"),
-                            ("t", "-2s"), ("t", "1500ms"), ("tick", "0"), ("t", "29.95")]:  # fmt: skip
+        links = [("seq", "40"), ("tick", "300"), ("t", "12s"), ("t", "10.4s"), ("t", "-2s"),
+                 ("t", "1500ms"), ("tick", "0"), ("t", "29.95")]  # fmt: skip
+        for kind, value in links:
             moment = run.resolve(f"{kind}:{value}" if kind != "t" else value)
             page.goto(f"{exported.as_uri()}#{kind}={value}")
             at_count(page, moment.count)
