@@ -108,3 +108,25 @@ def test_the_progress_bar_shows_the_tick_of_a_live_answer(tmp_path: Path) -> Non
     assert "tick 301" in before_answer  # the tick the answer is given before
     assert "tick 0 " not in before_answer.rsplit("running", 1)[-1]
     assert (tmp_path / "k.mcap").exists()
+
+
+@pytest.mark.parametrize("at", ["tick:300", "12s", "seq:40", "end", "-2s", "tick:0"])
+def test_every_header_names_the_same_moment(copies: Path, at: str) -> None:
+    """show, explain --json, ask --json and replay print the resolved moment's seq, tick
+    and time (the viewer's: tests/test_view.py), the time being the moment's own."""
+    from btlog.replay.database import open_runs
+
+    name = "kitting-look-at-chuck-fails.mcap"
+    with open_runs(copies / name, cache_dir=copies / "cache") as database:
+        moment = database.run().resolve(at)
+    expected = moment.to_json()
+    seq = "before the first event" if moment.seq is None else f"seq {moment.seq}"
+    head = f"at {at}: {seq}, tick {moment.tick}, {moment.t_ns / 1e9:.3f}s"
+    shown = btlog("show", name, "--at", at, cwd=copies)
+    assert shown.stdout.splitlines()[0].startswith(head), shown.stdout
+    explained = btlog("explain", name, "--at", at, "--json", cwd=copies)
+    assert json.loads(explained.stdout)["moment"] == expected
+    asked = btlog("ask", name, "--at", at, "What are you doing?", "--json", cwd=copies)
+    assert json.loads(asked.stdout)["moment"] == expected
+    replay = btlog("replay", name, "--script", "-", cwd=copies, input=f"g {at}\nq\n")
+    assert f"  {head}" in replay.stdout.split("── event ")[-1].splitlines()[0]
