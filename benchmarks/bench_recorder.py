@@ -61,9 +61,10 @@ def tick_patterns(per_tick: int, count: int = 8) -> list[list[tuple]]:
     ]
 
 
-def feed(subscriber: Subscriber, events: int, per_tick: int) -> None:
-    """Deliver ``events`` status changes in ticks of ``per_tick`` (1 µs apart in sim time)
-    as the executor does: a batch a tick when the subscriber takes batches, else one
+def feed(subscriber: Subscriber, events: int, per_tick: int, tick_ns: int = 0) -> None:
+    """Deliver ``events`` status changes in ticks of ``per_tick`` (1 µs apart in sim time,
+    or ticks ``tick_ns`` apart, as a robot's 10 Hz tree with ``tick_ns`` 100 ms) as the
+    executor does: a batch a tick when the subscriber takes batches, else one
     ``on_status`` a change; then ``on_tick``."""
     on_status, on_tick = subscriber.on_status, subscriber.on_tick
     patterns = tick_patterns(per_tick)
@@ -72,16 +73,16 @@ def feed(subscriber: Subscriber, events: int, per_tick: int) -> None:
     seq, tick = 0, 0
     while seq < events:
         tick += 1
-        start = seq * 1000
+        start = tick * tick_ns if tick_ns else seq * 1000
         if on_batch is not None:
             batch = batches[tick % len(batches)]
             on_batch(seq, tick, start, batch, None)
             seq += len(batch)
         else:
             for uid, prev, new in patterns[tick % len(patterns)]:
-                on_status(seq, seq * 1000, tick, uid, prev, new)
+                on_status(seq, start if tick_ns else seq * 1000, tick, uid, prev, new)
                 seq += 1
-        on_tick(TickRecord(tick, start, seq * 1000, RUNNING))
+        on_tick(TickRecord(tick, start, start if tick_ns else seq * 1000, RUNNING))
 
 
 class NoOp(Subscriber):
@@ -114,6 +115,7 @@ def measure(
     flush_interval: float,
     repeat: int,
     max_tick_events: int | None = None,
+    tick_ns: int = 0,
 ) -> tuple[float, float, int]:
     """(best wall seconds, best CPU seconds, file bytes) for recordings of ``events``
     synthetic events."""
@@ -128,7 +130,7 @@ def measure(
             compression=compression,
             max_tick_events=max_tick_events,
         )
-        feed(recorder, events, per_tick)
+        feed(recorder, events, per_tick, tick_ns)
         recorder.close()
 
     return *best_time(run, repeat), path.stat().st_size
@@ -146,17 +148,29 @@ def main() -> None:
         default=None,
         help="the Recorder's per-tick buffer bound (default: none)",
     )
+    parser.add_argument(
+        "--tick-ms",
+        type=float,
+        default=0.0,
+        help="run time between ticks (default: 1 µs an event; 100 = a 10 Hz robot, whose "
+        "events messages are then cut by the run's clock)",
+    )
     parser.add_argument("--smoke", action="store_true", help="a tiny run (10,000 events)")
     args = parser.parse_args()
     events = 10_000 if args.smoke else args.events
     repeat = 1 if args.smoke else args.repeat
+    tick_ns = round(args.tick_ms * 1e6)
     print(
-        f"{events:,} events in ticks of {args.per_tick}, flush interval "
+        f"{events:,} events in ticks of {args.per_tick}"
+        + (f" {args.tick_ms:g} ms apart" if tick_ns else "")
+        + f", flush interval "
         f"{args.flush_interval} s, max_tick_events {args.max_tick_events}, "
         f"best of {repeat}"
     )
     driver = NoOp() if args.max_tick_events is None else Subscriber()
-    driver_wall, driver_cpu = best_time(lambda: feed(driver, events, args.per_tick), repeat)
+    driver_wall, driver_cpu = best_time(
+        lambda: feed(driver, events, args.per_tick, tick_ns), repeat
+    )
     print(
         f"  driver alone (no-op subscriber): {events / driver_wall:,.0f} calls/s wall, "
         f"{events / driver_cpu:,.0f} calls/s CPU"
@@ -173,6 +187,7 @@ def main() -> None:
                 args.flush_interval,
                 repeat,
                 args.max_tick_events,
+                tick_ns,
             )
             own = cpu - driver_cpu
             print(

@@ -92,7 +92,7 @@ def test_sql_without_a_statement(small: Path, query: str) -> None:
         (["run", "t.xml", "--max-ticks", "many"], ["--max-ticks", "'many'"]),
         (["frobnicate"], ["btlog: error:", "frobnicate"]),
         (["sql", "--format", "xml", "r.mcap", "q"], ["--format"]),
-        (["ask", "r.mcap"], ["--at", "QUESTION"]),
+        (["ask", "r.mcap"], ["QUESTION"]),
     ],
 )
 def test_argument_errors_are_one_line(tmp_path: Path, args: list[str], words: list[str]) -> None:

@@ -15,10 +15,11 @@ from mcap.reader import make_reader
 import btlog
 from btlog.record import format as fmt
 from btlog.record import open_recording, read_metadata
+from btlog.record.recorder import GROUP_NS
 from btlog.runner import RunConfig, execute
 
 ROOT = Path(__file__).resolve().parents[1]
-OLD_RECORDING = ROOT / "recordings" / "kitting-ok.mcap"
+OLD_RECORDING = ROOT / "tests" / "data" / "v1-kitting-ok.mcap"  # schema version 1
 
 
 @pytest.fixture(scope="module")
@@ -50,6 +51,22 @@ def test_log_time_is_start_plus_the_events_time(kitting: Path) -> None:
     assert duration > 10**10  # a run of tens of simulated seconds…
     assert spans == sorted(spans)
     assert max(spans) - start_ns > duration * 0.9  # …spans as much log time
+
+
+def test_events_are_cut_by_the_runs_clock_so_a_player_plays_them_in_time(kitting: Path) -> None:
+    """A message spans at most ``GROUP_NS`` (100 ms) of run time, so each event is shown
+    within 100 ms of its time: the 72 s run is many messages, not one at its end."""
+    spans = []
+    with kitting.open("rb") as file:
+        for _schema, _channel, message in make_reader(file).iter_messages(
+            topics=[fmt.EVENTS_TOPIC]
+        ):
+            events = fmt.parse_events(message.data)
+            times = [row[1] for row in [*events.status, *events.writes]]
+            spans.append((min(times), max(times)))
+    assert all(last - first <= GROUP_NS for first, last in spans)
+    assert len(spans) >= 40
+    assert spans[0][1] < 1e9 and spans[-1][0] > 70e9  # the first second and the last
 
 
 def test_a_schema_version_1_recording_still_reads() -> None:

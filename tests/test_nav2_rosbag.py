@@ -53,7 +53,7 @@ def write_nav2_bag(
         for index, run in enumerate(runs):
             start = start_time_ns(run.metadata["started_at"])
             offset = index * 100_000_000_000
-            names = {n.uid: n.name for n in run.tree}
+            names = {n.uid: n.description for n in run.tree}  # BT.CPP's name()
             by_tick: dict[int, list] = {}
             for change in run.transitions:
                 by_tick.setdefault(change.tick, []).append(change)
@@ -107,11 +107,37 @@ def test_export_decodes_with_mcap_ros2(tmp_path: Path) -> None:
         for m in logs
         for e in m.decoded_message.event_log
     ]
-    names = {n.uid: n.name for n in run.tree}
+    names = {n.uid: n.name or n.type for n in run.tree}  # BT.CPP's name(): else the ID
     assert decoded == [(e.t_ns, e.uid, names[e.uid]) for e in run.transitions]
     assert all(m.message.log_time >= start for m in logs)
     first = logs[0].decoded_message.event_log[0]
     assert (first.previous_status, first.current_status) == ("IDLE", "RUNNING")
+
+
+NAMELESS = """<root BTCPP_format="4"><BehaviorTree ID="M"><Sequence>
+  <AlwaysSuccess/><Fallback name="try"><AlwaysFailure/><AlwaysSuccess/></Fallback>
+</Sequence></BehaviorTree></root>"""
+
+
+def test_export_names_nameless_nodes_by_their_id_as_btcpp_does(tmp_path: Path) -> None:
+    (tmp_path / "t.xml").write_text(NAMELESS, encoding="utf-8")
+    assert btlog("run", "t.xml", "-o", "t.mcap", "--quiet", cwd=tmp_path).returncode == 0
+    bag = tmp_path / "bag.mcap"
+    assert btlog("export", "t.mcap", "--to", "nav2", str(bag), cwd=tmp_path).returncode == 0
+    with open(bag, "rb") as stream:
+        reader = make_reader(stream, decoder_factories=[DecoderFactory()])
+        names = {
+            (e.uid, e.node_name)
+            for m in reader.iter_decoded_messages(topics=["/behavior_tree_log"])
+            for e in m.decoded_message.event_log
+        }
+    assert names == {(1, "Sequence"), (2, "AlwaysSuccess"), (3, "try"), (4, "AlwaysFailure"),
+                     (5, "AlwaysSuccess")}  # fmt: skip
+    back = btlog("import", str(bag), "--tree", "t.xml", "-o", "back.mcap", cwd=tmp_path)
+    assert back.returncode == 0, back.stderr
+    assert transitions(open_recording(tmp_path / "back.mcap")) == transitions(
+        open_recording(tmp_path / "t.mcap")
+    )
 
 
 def test_export_then_import_gives_the_same_transitions(tmp_path: Path) -> None:

@@ -33,7 +33,7 @@ def app(chuck: Path):
     database.close()
 
 
-@pytest.mark.parametrize("count", [0, 1, 40, 41, 150, 257])
+@pytest.mark.parametrize("count", [0, 1, 40, 41, 150, 256])
 def test_the_state_json_is_the_read_models_state(app: ViewerApp, count: int) -> None:
     run = app.views[0].run
     tree, state = run.state_after(count)
@@ -42,46 +42,79 @@ def test_the_state_json_is_the_read_models_state(app: ViewerApp, count: int) -> 
     statuses = {int(uid): status for uid, status in shown["status"].items()}
     assert statuses == {u: s.name for u, s in state.status.items() if s.name != "IDLE"}
     assert shown["present"] == sorted(tree.nodes)
-    assert [a["answer"] for a in shown["answers"]] == [a.text for a in explain(tree, state)]
+    answers = explain(tree, state, run.history())
+    assert [a["answer"] for a in shown["answers"]] == [a.text for a in answers]
     values = {(e["scope"], e["key"]): e["value"] for e in shown["blackboard"]}
     assert values == {(s, k): v for s, e in state.blackboard.items() for k, v in e.items()}
 
 
 def test_every_blackboard_entry_names_its_writer(app: ViewerApp) -> None:
-    entries = app.api("/api/run/0/state", {"count": "257"})["blackboard"]
+    entries = app.api("/api/run/0/state", {"count": "256"})["blackboard"]
     assert entries, "the kitting run writes poses"
     nodes = app.views[0].tree.nodes
     for entry in entries:
-        assert entry["writer"] in nodes and 0 <= entry["seq"] < 257
+        assert entry["writer"] in nodes and 0 <= entry["seq"] < 256
 
 
-def test_questions_get_btlog_asks_answers(app: ViewerApp) -> None:
+def test_questions_get_btlog_asks_answers_with_the_runs_history(app: ViewerApp) -> None:
     run = app.views[0].run
+    moment = run.resolve("seq:40")
     tree, state = run.state_after(41)
-    for question in ("What went wrong?", "Can you look at chuck?", "why?"):
+    for question in (
+        "What went wrong?",
+        "Can you look at chuck?",
+        "why?",
+        "When did look at chuck last fail?",
+        "Why did insert large gear fail?",
+    ):
         shown = app.api("/api/run/0/ask", {"count": "41", "q": question})
-        assert shown["answer"] == answer(tree, state, question).text
+        expected = answer(tree, state, question, run.history(), moment.t_ns).text
+        assert shown["answer"] == expected
+    assert (
+        app.api("/api/run/0/ask", {"count": "41", "q": "When did look at chuck last fail?"})[
+            "answer"
+        ]
+        == "look at chuck last failed at 10.400 s."
+    )
     unknown = app.api("/api/run/0/ask", {"count": "41", "q": "Sing"})
     assert unknown["answer"].startswith('Sorry. I don\'t understand "Sing"')
 
 
-def test_a_tick_step_ends_at_the_next_ticks_last_event(app: ViewerApp) -> None:
+def test_a_tick_step_goes_to_the_end_of_the_next_tick_with_or_without_events(
+    app: ViewerApp,
+) -> None:
     view = app.views[0]
-    ticks = [entry.tick for entry in view.run.timeline()]
-    for count in (0, 5, 40, 41, 200):
-        forward = view.step_tick(count, 1)
-        assert forward > count and ticks[forward - 1] == ticks[count]
-        assert forward == len(ticks) or ticks[forward] > ticks[count]
-    for count in (41, 200, 257):
-        back = view.step_tick(count, -1)
-        assert back < count and (back == 0 or ticks[back - 1] < ticks[count - 1])
-        assert ticks[back] == ticks[count - 1]
+    run = view.run
+    for at in ("tick:0", "seq:40", "tick:290", "10.45s"):
+        moment = run.resolve(at)
+        forward = app.api("/api/run/0/step", {"at": at, "dir": "1"})
+        assert forward == run.resolve(f"tick:{moment.tick + 1}").to_json()
+        back = app.api("/api/run/0/step", {"at": at, "dir": "-1"})
+        assert back["tick"] == max(0, moment.tick - 1)
+    quiet = app.api("/api/run/0/step", {"at": "tick:290", "dir": "1"})
+    assert quiet["tick"] == 291 and quiet["count"] == run.resolve("tick:290").count
+
+
+def test_the_state_names_its_moment_as_every_command_does(app: ViewerApp) -> None:
+    run = app.views[0].run
+    for at in ("tick:300", "12s", "seq:40", "end", "-2s"):
+        shown = app.api("/api/run/0/state", {"at": at})
+        assert shown["moment"] == run.resolve(at).to_json()
+    by_time = app.api("/api/run/0/state", {"t_ns": "12000000000"})["moment"]
+    assert (by_time["seq"], by_time["tick"], by_time["t_ns"]) == (40, 121, 12_000_000_000)
+    assert by_time["last_event_t_ns"] == 10_400_000_000
+
+
+def test_the_story_is_btlog_explains(app: ViewerApp, chuck: Path) -> None:
+    told = json.loads(btlog("explain", str(chuck), "--json").stdout)
+    told.pop("notes")
+    assert app.api("/api/runs", {})["runs"][0]["story"] == told
 
 
 def test_deep_link_forms_resolve_like_moments(app: ViewerApp) -> None:
     run = app.views[0].run
     for at in ("seq:40", "tick:300", "30s", "10.4s", "end"):
-        assert app.api("/api/run/0/resolve", {"at": at})["count"] == run.resolve(at).count
+        assert app.api("/api/run/0/resolve", {"at": at}) == run.resolve(at).to_json()
     assert app.api("/api/run/0/resolve", {"at": "seq:-1"})["count"] == 0
 
 
@@ -111,7 +144,7 @@ def test_the_server_is_loopback_only_and_read_only(app: ViewerApp) -> None:
         assert host == "127.0.0.1"
         base = f"http://127.0.0.1:{port}"
         status, body = _get(base + "/api/runs")
-        assert status == 200 and json.loads(body)["runs"][0]["events"] == 257
+        assert status == 200 and json.loads(body)["runs"][0]["events"] == 256
         assert _get(base + "/api/runs", host=f"attacker.example:{port}")[0] == 403
         assert _get(base + "/static/../model.py")[0] == 404
         assert _get(base + "/static/app.js")[0] == 200
@@ -144,7 +177,7 @@ def test_an_exported_page_holds_recorded_markup_as_data_only(tmp_path: Path) -> 
 
 
 def test_a_run_too_large_to_export_says_to_use_view(app: ViewerApp) -> None:
-    with pytest.raises(ExportTooLarge, match=r"257 events.*btlog view"):
+    with pytest.raises(ExportTooLarge, match=r"256 events.*btlog view"):
         export_data(app.views, None, None, limit=100)
 
 

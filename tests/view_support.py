@@ -6,12 +6,36 @@ import os
 import shutil
 import subprocess
 import sys
+from collections.abc import Iterator
 from pathlib import Path
 
 ROOT = Path(__file__).resolve().parents[1]
 RECORDINGS = ROOT / "recordings"
 CHUCK = RECORDINGS / "kitting-look-at-chuck-fails.mcap"
 ARTIFACTS = Path(os.environ.get("BTLOG_ARTIFACTS", ROOT / "tmp" / "artifacts"))
+#: Debian's chromium, which Playwright drives (``playwright install`` is never needed).
+CHROMIUM = Path("/usr/bin/chromium")
+CHROMIUM_ARGS = [
+    "--headless",
+    "--no-sandbox",
+    "--disable-gpu",
+    "--disable-background-networking",
+    "--disable-component-update",
+    "--disable-sync",
+    "--no-first-run",
+]
+
+
+def launched_chromium() -> Iterator:
+    """A headless chromium driven by Playwright, closed when the generator ends (the
+    body of the browser tests' ``browser`` fixture)."""
+    from playwright.sync_api import sync_playwright
+
+    with sync_playwright() as playwright:
+        launched = playwright.chromium.launch(executable_path=str(CHROMIUM), args=CHROMIUM_ARGS)
+        yield launched
+        launched.close()
+
 
 #: A tree whose names and values try to be markup.
 HOSTILE_TREE = """<root BTCPP_format="4" main_tree_to_execute="Main">
@@ -81,3 +105,34 @@ class Served:
         for stream in (self.process.stdout, self.process.stderr):
             if stream:
                 stream.close()
+
+
+def wide_tree_xml(stages: int = 16, steps: int = 4) -> str:
+    """A tree of about 300 nodes (at the defaults: 1 + 16 × (3 + 4 × 4) = 305): a
+    Sequence of stages, each a Fallback of a Sequence of steps — every step a Sequence
+    of three actions — and a recovery."""
+    lines = ['<root BTCPP_format="4" main_tree_to_execute="Main">', '<BehaviorTree ID="Main">',
+             '<Sequence name="run the line">']  # fmt: skip
+    for stage in range(1, stages + 1):
+        lines.append(f'<Fallback name="stage {stage}"><Sequence name="do stage {stage}">')
+        for step in range(1, steps + 1):
+            lines.append(f'<Sequence name="step {stage}.{step}">')
+            for verb in ("move", "grip", "check"):
+                lines.append(f'<Action ID="{verb}" name="{verb} {stage}.{step}"/>')
+            lines.append("</Sequence>")
+        lines.append(f'</Sequence><Action ID="recover" name="recover stage {stage}"/></Fallback>')
+    lines += ["</Sequence>", "</BehaviorTree>", "</root>"]
+    return "\n".join(lines) + "\n"
+
+
+def wide_recording(folder: Path) -> Path:
+    """A run of ``wide_tree_xml()`` in which one check fails once."""
+    tree = folder / "wide.xml"
+    tree.write_text(wide_tree_xml(), encoding="utf-8")
+    output = folder / "wide.mcap"
+    outcomes = folder / "wide.yaml"
+    outcomes.write_text("default: {status: SUCCESS, duration: 0.2}\n", encoding="utf-8")
+    done = btlog("run", str(tree), "--outcomes", str(outcomes), "--fail", "check 7.2",
+                 "-o", str(output), "--quiet")  # fmt: skip
+    assert done.returncode == 0, done.stderr
+    return output

@@ -87,13 +87,16 @@ class LiveQuestion:
         return False
 
 
-def _time_of(moment: Moment, state: State, started_at_ns: int | None) -> int:
-    """The moment's time since the start, as post hoc resolves it: its own time, or for
-    ``tick:N`` and ``seq:N`` the time of the last event applied."""
+def _time_of(moment: Moment, state: State, started_at_ns: int | None, tick_end_ns: int) -> int:
+    """The moment's time since the start, as post hoc resolves it: its own time, for
+    ``tick:N`` the end of that tick (``tick_end_ns``: the live run's last tick is N), for
+    ``seq:N`` the time of the last event applied."""
     if moment.kind == TIME:
         return moment.value
     if moment.kind == WALL:
         return wall_offset_ns(moment, started_at_ns)
+    if moment.kind == TICK:
+        return max(tick_end_ns, state.t_ns)
     return state.t_ns
 
 
@@ -104,8 +107,7 @@ class _Extent(Subscriber):
     def __init__(self) -> None:
         self.times: list[int] = []
         self.ticks: list[int] = []
-        self.end_ns = 0
-        self.last_tick = 0
+        self.tick_records: list[tuple[int, int, int]] = []
 
     def on_status(
         self, seq: int, t_ns: int, tick: int, uid: int, prev: Status, status: Status
@@ -135,9 +137,13 @@ class _Extent(Subscriber):
         self.ticks.append(mutation.tick)
 
     def on_tick(self, record: TickRecord) -> None:
-        """The end of a tick."""
-        self.end_ns = max(self.end_ns, record.end_ns)
-        self.last_tick = max(self.last_tick, record.tick)
+        """The end of a tick: its number, start and end."""
+        self.tick_records.append((record.tick, record.start_ns, record.end_ns))
+
+    @property
+    def end_ns(self) -> int:
+        """The end of the last tick so far (0 before the first)."""
+        return self.tick_records[-1][2] if self.tick_records else 0
 
 
 class LiveQuestions(Subscriber):
@@ -172,7 +178,7 @@ class LiveQuestions(Subscriber):
         for question in [q for q in self.pending if q.due(executor, next_ns, self._started_ns)]:
             self.pending.remove(question)
             state = self.projection.state
-            at_ns = _time_of(question.moment, state, self._started_ns)
+            at_ns = _time_of(question.moment, state, self._started_ns, self.extent.end_ns)
             self._answer(question, self.projection.tree, state, at_ns, running=True)
 
     def finish(self) -> None:
@@ -180,11 +186,7 @@ class LiveQuestions(Subscriber):
         each moment resolved against the run's events as post hoc; moments outside the
         run are refused (``refused`` holds the one-line reasons)."""
         extent = RunExtent.from_events(
-            self.extent.times,
-            self.extent.ticks,
-            self.extent.end_ns,
-            self.extent.last_tick,
-            self.started_at,
+            self.extent.times, self.extent.ticks, self.extent.tick_records, self.started_at
         )
         for question in list(self.pending):
             self.pending.remove(question)

@@ -29,6 +29,7 @@ from btlog.explain.questions import Answer
 from btlog.live_questions import LiveQuestion, LiveQuestionError, LiveQuestions
 from btlog.outputs import refuse_overwrite
 from btlog.record.recorder import Recorder
+from btlog.replay.moments import TICK, TIME
 from btlog.status import Status
 from btlog.tree.descriptions import apply_descriptions, load_descriptions
 from btlog.tree.loader import load_nodes_model, load_tree
@@ -162,6 +163,22 @@ def default_output(tree_path: str, run_id: str) -> Path:
     return Path(f"{Path(tree_path).stem}-{run_id}.mcap")
 
 
+def _refuse_unreachable(question: LiveQuestion, config: RunConfig) -> None:
+    """On the simulated clock a run lasts at most ``max_ticks`` ticks of
+    ``tick_period``: a ``tick:N`` or time past that is refused before anything is run or
+    written (other moments outside the run are only known once it is over)."""
+    moment = question.moment
+    last_ns = round(config.max_ticks * config.tick_period * 1e9)
+    if (moment.kind == TICK and moment.value > config.max_ticks) or (
+        moment.kind == TIME and moment.value > last_ns
+    ):
+        raise RunError(
+            f"--ask {question.when}={question.question!r}: moment {moment.text!r} is after "
+            f"the end of any run of --max-ticks {config.max_ticks} "
+            f"({config.max_ticks} ticks, {last_ns / 1e9:g} s)"
+        )
+
+
 def execute(
     config: RunConfig,
     output: str | os.PathLike | None = None,
@@ -190,6 +207,9 @@ def execute(
         raise RunError(str(error)) from None
     if not 1 <= config.max_ticks <= limits.MAX_INT64:
         raise RunError(f"--max-ticks {config.max_ticks}: must be from 1 to {limits.MAX_INT64}")
+    if not config.realtime:
+        for question in questions:
+            _refuse_unreachable(question, config)
     clock = WallClock(config.tick_period) if config.realtime else SimClock(config.tick_period)
     executor = Executor(tree, clock=clock, leaf_factory=domain.leaf_factory(tree, outcomes))
     run_id = uuid.uuid4().hex[:12]
@@ -206,10 +226,10 @@ def execute(
         live = LiveQuestions(executor, questions, recorder, on_answer, metadata["started_at"])
 
     def before_tick(ex: Executor) -> None:
+        if on_tick is not None:  # first: a progress bar shows the tick an answer is at
+            on_tick(ex.runtime.tick)
         if live is not None:
             live.before_tick(ex)
-        if on_tick is not None:
-            on_tick(ex.runtime.tick)
 
     try:
         status = executor.run(config.max_ticks, before_tick)

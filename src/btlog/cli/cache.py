@@ -9,6 +9,9 @@ import os
 from collections.abc import Iterator
 from contextlib import contextmanager
 from datetime import datetime
+from pathlib import Path
+
+from btlog.render.escape import safe
 
 #: Commands that open recordings through the read model (and so take ``--cache-dir``).
 READING_COMMANDS = ("ask", "explain", "show", "timeline", "replay", "sql", "check")
@@ -70,6 +73,7 @@ def cache_command(args: argparse.Namespace) -> int:
         return 0
     found = cache.entries(root)
     total = sum(entry.size for entry in found)
+    names = {entry.path: recording_of(entry.path) for entry in found}
     if args.json:
         print(
             json.dumps(
@@ -78,7 +82,12 @@ def cache_command(args: argparse.Namespace) -> int:
                     "bytes": total,
                     "max_bytes": cache.max_bytes(),
                     "files": [
-                        {"name": e.path.name, "bytes": e.size, "last_used_ns": e.last_used_ns}
+                        {
+                            "name": e.path.name,
+                            "recording": names[e.path],
+                            "bytes": e.size,
+                            "last_used_ns": e.last_used_ns,
+                        }
                         for e in found
                     ],
                 },
@@ -88,8 +97,29 @@ def cache_command(args: argparse.Namespace) -> int:
         return 0
     for entry in reversed(found):
         used = datetime.fromtimestamp(entry.last_used_ns / 1e9).isoformat(timespec="seconds")
-        print(f"{entry.size / 1e6:10.1f} MB  {used}  {entry.path.name}")
+        recording = safe(names[entry.path] or "(unreadable)")
+        print(f"{entry.size / 1e6:10.1f} MB  {used}  {recording}  {entry.path.name}")
     print(
         f"{root}: {len(found)} caches, {total / 1e6:.1f} MB (cap {cache.max_bytes() / 1e6:.0f} MB)"
     )
     return 0
+
+
+def recording_of(path: Path) -> str | None:
+    """The recording a cache file was built from (``runs.file`` in the cache; for a
+    snapshots file, its cache's), or None when the file cannot be read now (a build in
+    progress holds its lock)."""
+    import duckdb
+
+    from btlog.replay import cache
+
+    if path.name.endswith(cache.SNAPSHOTS_SUFFIX):
+        path = path.with_name(path.name.removesuffix(cache.SNAPSHOTS_SUFFIX) + cache.SUFFIX)
+        found = recording_of(path) if path.exists() else None
+        return None if found is None else f"{found} (snapshots)"
+    try:
+        with duckdb.connect(str(path), read_only=True) as con:
+            row = con.execute("SELECT file FROM runs LIMIT 1").fetchone()
+    except duckdb.Error:
+        return None
+    return None if row is None else str(row[0])

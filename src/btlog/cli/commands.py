@@ -24,16 +24,14 @@ from btlog.explain.questions import explain as explain_all
 from btlog.outputs import refuse_overwrite
 from btlog.render.escape import safe
 from btlog.render.terminal import blackboard_lines, format_ns, make_console, tree_lines
-from btlog.replay.moments import TICK, parse_moment
 from btlog.runner import RunConfig, execute
-from btlog.state import State
 from btlog.status import Status
 from btlog.tree.loader import load_tree
 
 if TYPE_CHECKING:
     from btlog.replay.database import Run, RunDatabase
+    from btlog.replay.moments import Resolved
     from btlog.runner import LiveQuestion
-    from btlog.state import State
 
 
 def _print_json(data: object) -> None:
@@ -59,14 +57,27 @@ def run(args: Namespace) -> int:
         descriptions_file=args.descriptions,
     )
     console = make_console()
+    progress: Progress | None = None
+    ticks = [0]  # the last tick begun
+
+    def on_tick(tick: int) -> None:
+        ticks[0] = tick
+        if progress is not None:
+            progress.update(progress.task_ids[0], completed=tick)
 
     def on_answer(question: LiveQuestion, result: Answer, seq: int) -> None:
-        if not args.quiet:
-            print(f"[{safe(question.when)}] {safe(question.question)}", flush=True)
-            print(f"  {safe(result.text)}", flush=True)
+        if args.quiet:
+            return
+        lines = f"[{safe(question.when)}] {safe(question.question)}\n  {safe(result.text)}"
+        if progress is None or not sys.stdout.isatty():
+            print(lines, flush=True)
+            return
+        # on the terminal, above the bar, which first shows the tick of the answer
+        progress.update(progress.task_ids[0], completed=ticks[0])
+        progress.refresh()
+        progress.console.print(lines, highlight=False, markup=False)
 
-    interactive = sys.stderr.isatty() and not args.quiet
-    if interactive:
+    if sys.stderr.isatty() and not args.quiet:
         progress = Progress(
             TextColumn("running"),
             BarColumn(),
@@ -74,15 +85,12 @@ def run(args: Namespace) -> int:
             TimeElapsedColumn(),
             console=make_console(stderr=True),
             transient=True,
+            redirect_stdout=False,
+            redirect_stderr=False,
         )
         with progress:
-            task = progress.add_task("run", total=args.max_ticks)
-            result = execute(
-                config,
-                args.output,
-                on_answer,
-                on_tick=lambda tick: progress.update(task, completed=tick),
-            )
+            progress.add_task("run", total=args.max_ticks)
+            result = execute(config, args.output, on_answer, on_tick=on_tick)
     else:
         result = execute(config, args.output, on_answer)
     if args.quiet:
@@ -102,9 +110,9 @@ def run(args: Namespace) -> int:
         )
     for warning in result.warnings:
         print(f"btlog run: warning: {safe(warning)}", file=sys.stderr)
-    for refusal in result.refused:
-        print(f"btlog run: {safe(refusal)} (not answered)", file=sys.stderr)
-    return EXIT_BAD_INPUT if result.refused else EXIT_OK
+    for refusal in result.refused:  # the run is recorded: its moment was outside it
+        print(f"btlog run: warning: {safe(refusal)} (not answered)", file=sys.stderr)
+    return EXIT_OK
 
 
 # -- questions ---------------------------------------------------------------------------
@@ -148,28 +156,24 @@ def _describe(run: Run, descriptions: str | None) -> None:
 
 @contextmanager
 def _moment(path: str, moment: str, descriptions: str | None = None) -> Iterator[tuple]:
-    """(run, tree, state, time) at a moment of a recording, while its read model is
-    open; ``descriptions``, a descriptions file, gives its nodes' words."""
+    """(run, tree, state, resolved moment) at a moment of a recording, while its read
+    model is open; ``descriptions``, a descriptions file, gives its nodes' words."""
     database, run = _open_run(path)
     try:
         _describe(run, descriptions)
         resolved = run.resolve(moment)
         tree, state = run.state_after(resolved.count)
-        yield run, tree, state, resolved.t_ns
+        yield run, tree, state, resolved
     finally:
         database.close()
 
 
-def _moment_json(state: State, moment: str) -> dict:
-    return {"at": moment, "seq": state.seq, "t_ns": state.t_ns, "tick": state.tick}
-
-
 def ask(args: Namespace) -> int:
     """``btlog ask``: one answer at a moment (Q7 shows the tree it would give)."""
-    with _moment(args.run, args.at, args.descriptions) as (run, tree, state, at_ns):
-        result = answer(tree, state, args.question, run.history(), at_ns)
+    with _moment(args.run, args.at, args.descriptions) as (run, tree, state, moment):
+        result = answer(tree, state, args.question, run.history(), moment.t_ns)
     if args.json:
-        _print_json({**result.to_json(), "moment": _moment_json(state, args.at)})
+        _print_json({**result.to_json(), "moment": moment.to_json()})
         return 0 if result.known else EXIT_BAD_INPUT
     if not result.known:  # as for a question btlog does not understand: bad input
         print(f"btlog ask: {safe(result.text)}", file=sys.stderr)
@@ -190,13 +194,13 @@ def explain(args: Namespace) -> int:
     recording says is missing."""
     if args.at is None:
         return _story(args)
-    with _moment(args.run, args.at, args.descriptions) as (run, tree, state, _at_ns):
+    with _moment(args.run, args.at, args.descriptions) as (run, tree, state, moment):
         answers = explain_all(tree, state, run.history())
         notes = [run.info.metadata["incomplete"]] if run.info.metadata.get("incomplete") else []
     if args.json:
         _print_json(
             {
-                "moment": _moment_json(state, args.at),
+                "moment": moment.to_json(),
                 "answers": [a.to_json() for a in answers],
                 "notes": notes,
             }
@@ -213,7 +217,7 @@ def _story(args: Namespace) -> int:
     """``btlog explain REC``: the whole run, top down."""
     from btlog.explain.story import story
 
-    with _moment(args.run, "end", args.descriptions) as (run, tree, state, _at_ns):
+    with _moment(args.run, "end", args.descriptions) as (run, tree, state, _moment_at):
         told = story(tree, state, run.history())
         notes = [run.info.metadata["incomplete"]] if run.info.metadata.get("incomplete") else []
     if args.json:
@@ -230,7 +234,7 @@ def show(args: Namespace) -> int:
     """``btlog show``: the tree with each node's status at a moment."""
     if args.html:
         refuse_overwrite(args.html, [args.run], "--html")
-    with _moment(args.run, args.at) as (run, tree, state, at_ns):
+    with _moment(args.run, args.at) as (run, tree, state, moment):
         current = {n.uid for n in current_nodes(tree, state)}
         answers = explain_all(tree, state, run.history()) if args.html else []
     if args.html:
@@ -241,7 +245,7 @@ def show(args: Namespace) -> int:
         print(safe(args.html))
         return 0
     console = make_console(args.plain)
-    console.print(moment_header(args.at, state, at_ns), highlight=False)
+    console.print(moment_header(moment), highlight=False)
     for line in tree_lines(tree, state, current):
         console.print(line)
     if args.blackboard:
@@ -251,13 +255,15 @@ def show(args: Namespace) -> int:
     return 0
 
 
-def moment_header(when: str, state: State, at_ns: int) -> str:
-    """``at WHEN: seq S, tick T, TIME``, naming the moment exactly: S is the last event
-    applied, T the moment's tick (N itself for ``tick:N``), TIME the moment's time."""
-    moment = parse_moment(when)
-    last = f"seq {state.seq - 1}" if state.seq else "before the first event"
-    tick = moment.value if moment.kind == TICK else state.tick
-    return f"at {safe(when)}: {last}, tick {tick}, {format_ns(at_ns)}"
+def moment_header(moment: Resolved) -> str:
+    """``at WHEN: seq S, tick T, TIME (last event at L)``: the moment as every header
+    names it (``btlog.replay.moments.Resolved``): S the last event applied, T the
+    moment's tick, TIME the moment's own time, L the last event's when it differs."""
+    last = "before the first event" if moment.seq is None else f"seq {moment.seq}"
+    head = f"at {safe(moment.moment.text)}: {last}, tick {moment.tick}, {format_ns(moment.t_ns)}"
+    if moment.last_event_t_ns is not None and moment.last_event_t_ns != moment.t_ns:
+        head += f" (last event at {format_ns(moment.last_event_t_ns)})"
+    return head
 
 
 def _no_blackboard(path: str) -> str:
@@ -335,7 +341,7 @@ def sql(args: Namespace) -> int:
         )
     elif args.format == "csv":
         buffer = io.StringIO()
-        writer = csv.writer(buffer)
+        writer = csv.writer(buffer, lineterminator="\n")  # a Unix tool's lines, not CRLF
         writer.writerow([safe(c) for c in columns])
         writer.writerows([["" if v is None else safe(v) for v in row] for row in rows])
         sys.stdout.write(buffer.getvalue())

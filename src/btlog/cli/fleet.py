@@ -5,6 +5,7 @@ from __future__ import annotations
 import argparse
 import json
 from argparse import Namespace
+from collections import Counter
 
 from btlog.render.escape import safe
 
@@ -76,11 +77,13 @@ def fleet(args: Namespace) -> int:
     console = make_console()
     outcomes = ", ".join(f"{row['runs']} {safe(row['final_status'])}" for row in report.outcomes)
     console.print(f"{report.runs} runs: {outcomes}")
-    nodes = Table("node", "activations", "failed", "failure rate", "p50 s", "p90 s", "p99 s")
-    for row in report.nodes[: args.nodes]:
+    nodes = Table("node (path)", "activations", "completed", "failed", "failure rate",
+                  "p50 s", "p90 s", "p99 s")  # fmt: skip
+    for row, label in zip(report.nodes[: args.nodes], node_labels(report.nodes), strict=False):
         nodes.add_row(
-            safe(row["name"] or row["type"]),
+            safe(label),
             str(row["activations"]),
+            str(row["completed"]),
             str(row["failed"]),
             "-" if row["failure_rate"] is None else f"{row['failure_rate']:.1%}",
             *("-" if row[k] is None else f"{row[k]:.3f}" for k in ("p50_s", "p90_s", "p99_s")),
@@ -101,6 +104,19 @@ def fleet(args: Namespace) -> int:
     else:
         console.print("no failures")
     return 0
+
+
+def node_labels(rows: list[dict]) -> list[str]:
+    """Each node row's path, which names it across runs; a nameless node's path (its
+    scope and nothing) or a path several rows share gets the node's type and uid too."""
+    shared = Counter(row["path"] for row in rows)
+    labels = []
+    for row in rows:
+        path = row["path"] or "(root)"
+        if not row["name"] or shared[row["path"]] > 1:
+            path += f" [{row['type']} #{row['uid']}]"
+        labels.append(path)
+    return labels
 
 
 def lake_sql(args: Namespace) -> tuple[list[str], list[tuple]]:

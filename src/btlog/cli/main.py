@@ -134,7 +134,7 @@ def build_parser() -> argparse.ArgumentParser:
 
     ask = commands.add_parser("ask", help="answer one question at a moment")
     ask.add_argument("run", metavar="RUN")
-    _add_moment(ask)
+    _add_moment(ask, required=False)
     ask.add_argument("question", metavar="QUESTION")
     ask.add_argument("--json", action="store_true", help="JSON output")
     _add_descriptions(ask)
@@ -290,6 +290,22 @@ def join_negative_moments(argv: Sequence[str]) -> list[str]:
     return joined
 
 
+def _rejoin_positionals(args: argparse.Namespace, extra: list[str]) -> bool:
+    """Give back the positionals written after an option: argparse takes one run of
+    them, so `export REC --to F OUT` leaves OUT over and `sql REC --format csv QUERY`
+    leaves QUERY (the recording taken for the query). False if ``extra`` is not that."""
+    if any(a.startswith("-") for a in extra):
+        return False
+    if args.command == "export":
+        args.items += extra
+        return True
+    if args.command == "sql":
+        args.runs += [args.query, *extra[:-1]]
+        args.query = extra[-1]
+        return True
+    return False
+
+
 def main(argv: Sequence[str] | None = None) -> int:
     """Run the command line; returns the exit code."""
     parser = build_parser()
@@ -297,10 +313,7 @@ def main(argv: Sequence[str] | None = None) -> int:
         args, extra = parser.parse_known_args(
             join_negative_moments(sys.argv[1:] if argv is None else argv)
         )
-        if extra and args.command == "export" and not any(a.startswith("-") for a in extra):
-            # argparse takes one run of positionals: `export REC --to F OUT` leaves OUT over
-            args.items += extra
-        elif extra:
+        if extra and not _rejoin_positionals(args, extra):
             parser.error(f"unrecognized arguments: {' '.join(extra)}")
     except SystemExit as exit_:
         return int(exit_.code or 0)

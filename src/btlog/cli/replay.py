@@ -1,16 +1,22 @@
 """``btlog replay``: step forward and back through a run.
 
-A line-oriented terminal interface: each command moves the position (by event, by tick,
-by time, or to any moment) and prints, within one screen, where it landed: the events it
-just stepped over (the last few), the current node with its ancestors, and the answers
-to Q1–Q6 there; ``tree`` draws the whole tree with its statuses. It reads commands from
-the keyboard, or from a file or standard input with ``--script``, so tests and scripts
+On a terminal the arrow keys are keystrokes (read by ``prompt_toolkit``, which knows every
+terminal's key sequences): → / ← one event, ↓ / ↑ one tick, Enter repeats the last
+command, and a command line with history and editing for the rest. Each command moves
+the position and prints, within one screen, where it landed: the moment's header (the
+one every command prints, ``btlog.replay.moments.Resolved``), the events it just stepped
+over (the last few), the current node with its ancestors, and the answers to Q1–Q6
+there; ``tree`` draws the whole tree with its statuses. With ``--script`` (a file, or
+``-`` for standard input) it reads the same commands a line each, so tests and scripts
 can drive it.
 
-Commands: ``n [K]`` / ``p [K]`` next/previous K events (→ / ←), ``t [K]`` / ``T [K]``
-next/previous K ticks (↓ / ↑), ``f S`` / ``b S`` forward/back S seconds, ``g WHEN`` go to
-a moment, ``tree`` the tree, ``ask QUESTION``, ``bb`` toggle the blackboard (shown with
-``tree``), ``h`` help, ``q`` quit; Enter repeats the last command.
+The position is a moment of the run's clock, not only an event: ``t``/``T`` go to the
+end of the next or previous tick and ``f``/``b`` move by seconds of run time, also over
+ticks and seconds in which nothing happened (the header then says the last event's time
+apart from the moment's). Commands: ``n [K]`` / ``p [K]`` next/previous K events,
+``t [K]`` / ``T [K]`` next/previous K ticks, ``f S`` / ``b S`` forward/back S seconds,
+``g WHEN`` go to a moment, ``tree`` the tree, ``ask QUESTION``, ``bb`` toggle the
+blackboard (shown with ``tree``), ``h`` help, ``q`` quit.
 """
 
 from __future__ import annotations
@@ -22,79 +28,80 @@ from typing import TYPE_CHECKING
 
 from rich.text import Text
 
-from btlog.cli.commands import timeline_line
+from btlog.cli.commands import moment_header, timeline_line
 from btlog.explain.hierarchy import current_nodes
 from btlog.explain.questions import UnknownQuestion, answer, explain
 from btlog.render.escape import safe
-from btlog.render.terminal import blackboard_lines, format_ns, make_console, tree_lines
+from btlog.render.terminal import blackboard_lines, make_console, tree_lines
+from btlog.replay.moments import time_moment
 
 if TYPE_CHECKING:
+    from prompt_toolkit.filters import Filter
+    from prompt_toolkit.key_binding import KeyPressEvent
     from rich.console import Console
 
     from btlog.replay.database import Run
+    from btlog.replay.moments import Resolved
     from btlog.state import State
     from btlog.tree.model import Tree
 
 HELP = (
-    "commands: n [K] next K events (→) | p [K] previous K events (←) | t [K] next K ticks "
-    "(↓) | T [K] previous K ticks (↑) | f S forward S seconds | b S back S seconds | g WHEN "
-    "go to a moment | tree the tree | ask QUESTION | bb toggle blackboard | h help | q quit "
-    "| Enter repeats"
+    "keys: → next event | ← previous event | ↓ next tick | ↑ previous tick | Enter repeats; "
+    "commands: n [K] next K events | p [K] previous K events | t [K] next K ticks | "
+    "T [K] previous K ticks | f S forward S seconds | b S back S seconds | g WHEN go to a "
+    "moment | tree the tree | ask QUESTION | bb toggle blackboard | h help | q quit"
 )
-#: Arrow keys as a terminal sends them (normal and application cursor mode).
-ARROWS = {
-    "\x1b[C": "n",
-    "\x1bOC": "n",
-    "\x1b[D": "p",
-    "\x1bOD": "p",
-    "\x1b[B": "t",
-    "\x1bOB": "t",
-    "\x1b[A": "T",
-    "\x1bOA": "T",
-}
+#: The command each arrow key stands for.
+ARROW_COMMANDS = {"right": "n", "left": "p", "down": "t", "up": "T"}
 #: The events a step lists (the last ones it stepped over).
 SHOWN_EVENTS = 5
 
 
 class Stepper:
-    """The position in a run (the number of events applied) and what to show there."""
+    """The position in a run (a resolved moment: its events applied, its tick and time)
+    and what to show there."""
 
     def __init__(self, run: Run, console: Console) -> None:
         self.run = run
         self.console = console
-        self.total = run.state_at("end")[1].seq
-        self.position = min(1, self.total)
+        self.total = run.extent.events
+        self.moment: Resolved = run.resolve("seq:0" if self.total else "tick:0")
         self.show_blackboard = False
+
+    @property
+    def position(self) -> int:
+        """The number of events applied."""
+        return self.moment.count
 
     def state(self) -> tuple[Tree, State]:
         """(tree, state) at the current position."""
-        if self.total == 0:
-            return self.run.state_at("end")
-        return self.run.state_at(f"seq:{self.position - 1}")
+        return self.run.state_after(self.moment.count)
 
     def move_events(self, count: int) -> None:
-        """Move by ``count`` events (negative: back)."""
-        self.position = max(1, min(self.total, self.position + count))
+        """Move by ``count`` events (negative: back), within the first and last."""
+        if self.total:
+            seq = max(0, min(self.total - 1, self.position - 1 + count))
+            self.go(f"seq:{seq}")
 
     def move_ticks(self, count: int) -> None:
-        """Move to the end of the tick ``count`` ticks away."""
-        tick = self.state()[1].tick + count
-        self.go(f"tick:{max(tick, 1)}")
+        """Move to the end of the tick ``count`` ticks away (whether or not it has
+        events), within the run's ticks."""
+        tick = max(0, min(self.run.extent.last_tick, self.moment.tick + count))
+        self.go(f"tick:{tick}")
 
     def move_seconds(self, seconds: float) -> None:
-        """Move by ``seconds`` of run time."""
-        t_ns = self.state()[1].t_ns + round(seconds * 1e9)
-        self.go(f"{max(t_ns, 0)}ns")
+        """Move by ``seconds`` of run time, within the run."""
+        t_ns = self.moment.t_ns + round(seconds * 1e9)
+        self.go(time_moment(max(0, min(self.run.extent.duration_ns, t_ns))))
 
     def go(self, moment: str) -> None:
         """Move to any moment form."""
-        self.position = max(1, self.run.state_at(moment)[1].seq)
+        self.moment = self.run.resolve(moment)
 
-    def header(self, state: State) -> None:
-        """The position: event, seq, tick and time."""
+    def header(self) -> None:
+        """The position: which event of how many, and the moment's header."""
         self.console.print(
-            f"── event {self.position}/{self.total}  seq {state.seq - 1}  "
-            f"tick {state.tick}  {format_ns(state.t_ns)}",
+            f"── event {self.position}/{self.total}  {moment_header(self.moment)}",
             highlight=False,
         )
 
@@ -103,7 +110,7 @@ class Stepper:
         position ``before`` (the last few), the current node's ancestry, and Q1–Q6."""
         tree, state = self.state()
         console = self.console
-        self.header(state)
+        self.header()
         if before is not None and before != self.position:
             low, high = sorted((before, self.position))
             entries = self.run.timeline(start=f"seq:{low}", end=f"seq:{high - 1}")
@@ -121,7 +128,7 @@ class Stepper:
     def render_tree(self) -> None:
         """Print the position and the whole tree (and the blackboard when toggled on)."""
         tree, state = self.state()
-        self.header(state)
+        self.header()
         current = {n.uid for n in current_nodes(tree, state)}
         for line in tree_lines(tree, state, current):
             self.console.print(line)
@@ -130,13 +137,40 @@ class Stepper:
                 self.console.print(line)
 
 
-def _commands(script: str | None) -> Iterator[str]:
+def _typed_commands(console: Console) -> Iterator[str]:
+    """Commands from the keyboard: an arrow key on an empty line is its command at once
+    (``ARROW_COMMANDS``), anything else is typed and entered; Ctrl-D ends."""
+    from prompt_toolkit import PromptSession
+    from prompt_toolkit.key_binding import KeyBindings
+
+    keys = KeyBindings()
+    for key, command in ARROW_COMMANDS.items():
+
+        def take(event: KeyPressEvent, command: str = command) -> None:
+            event.app.exit(result=command)
+
+        keys.add(key, filter=_empty_line())(take)
+    session: PromptSession[str] = PromptSession(key_bindings=keys)
+    while True:
+        try:
+            yield session.prompt("replay> ")
+        except EOFError:
+            return
+        except KeyboardInterrupt:
+            console.print("(q quits)", highlight=False)
+
+
+def _empty_line() -> Filter:
+    """A prompt_toolkit filter: the line being typed is empty."""
+    from prompt_toolkit.application.current import get_app
+    from prompt_toolkit.filters import Condition
+
+    return Condition(lambda: not get_app().current_buffer.text)
+
+
+def _commands(script: str | None, console: Console) -> Iterator[str]:
     if script is None:
-        while True:
-            try:
-                yield input("replay> ")
-            except EOFError:
-                return
+        yield from _typed_commands(console)
     else:
         stream = sys.stdin if script == "-" else open(script, encoding="utf-8")  # noqa: SIM115
         with stream:
@@ -150,16 +184,6 @@ def _count(parts: list[str], default: float = 1) -> float:
         return float(parts[1])
     except ValueError:
         raise ValueError(f"not a number: {parts[1]!r}") from None
-
-
-def keys_to_command(line: str) -> str:
-    """A line of arrow keys as the command they stand for (``→→`` is ``n 2``); any other
-    line as it is."""
-    text = line.strip()
-    for key, word in ARROWS.items():
-        if text and text.replace(key, "") == "":
-            return f"{word} {text.count(key)}"
-    return line
 
 
 def _apply(stepper: Stepper, line: str) -> bool:
@@ -206,11 +230,13 @@ def replay(args: Namespace) -> int:
 
     database = open_runs(args.run)
     try:
-        stepper = Stepper(database.run(args.run), make_console(args.plain))
+        console = make_console(args.plain)
+        stepper = Stepper(database.run(args.run), console)
         stepper.render()
+        script = "-" if args.script is None and not sys.stdin.isatty() else args.script
         last = "n"
-        for line in _commands(args.script):
-            command = keys_to_command(line) if line.strip() else last  # Enter repeats
+        for line in _commands(script, console):
+            command = line if line.strip() else last  # Enter repeats
             last = command
             try:
                 if not _apply(stepper, command):

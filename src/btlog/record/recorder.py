@@ -9,7 +9,9 @@ its tick and its time (or each change's time, when the clock is not simulated). 
 nothing numbers, times or encodes a change one by one. The recorder keeps the changes
 as they come and each batch as a segment ``(seq, tick, count, t_ns)``; ``on_status``,
 for other callers, adds to the same. ``on_write`` builds one tuple. ``on_tick`` hands
-the buffered rows, once about a thousand have gathered, to the recorder's own thread
+the buffered rows, once about a thousand have gathered or they span about 100 ms of the
+run's clock (``GROUP_NS``: a player showing a message at its log_time shows each event
+within that of its time), to the recorder's own thread
 (``btlog.record.background``), which encodes them as one ``/btlog/events`` message of
 binary columns (``btlog.record.columns``: the seq, time and tick columns come from the
 segments, the others from the packed changes) and does the MCAP writer's work — adding
@@ -56,6 +58,10 @@ from btlog.tree.model import Tree
 DEFAULT_COMPRESSION = CompressionType.ZSTD
 #: Events gathered (over one or more ticks) before a ``/btlog/events`` message is written.
 GROUP_EVENTS = 1024
+#: The run time a ``/btlog/events`` message spans at most (when ticks are this far apart
+#: or more, a message per tick): a player showing messages at their log_time shows each
+#: event within this of its time.
+GROUP_NS = 100_000_000
 #: A suggested ``max_tick_events``: write a tick's events in parts past this many.
 MAX_BUFFERED_EVENTS = 50_000
 #: The MCAP chunk size: a chunk is also closed when it grows past this many bytes.
@@ -161,9 +167,15 @@ class Recorder(Subscriber):
         chunk_size: int = CHUNK_SIZE,
         max_tick_events: int | None = None,
         group_events: int = GROUP_EVENTS,
+        group_ns: int = GROUP_NS,
     ) -> None:
         self.path = os.fspath(path)
         self.group_events = group_events
+        self.group_ns = group_ns
+        #: the start of the first tick whose events are buffered (None: none are), and
+        #: the end of the last tick: the next tick is expected as far on
+        self._group_start_ns: int | None = None
+        self._last_end_ns = 0
         self.flush_interval = flush_interval
         self.max_tick_events = max_tick_events
         self.chunk_size = chunk_size
@@ -302,8 +314,10 @@ class Recorder(Subscriber):
 
     def on_tick(self, record: TickRecord) -> None:
         """Write the buffered events as one message once ``group_events`` have gathered
-        (the MCAP writer costs ~10 µs a message, so small ticks are grouped); flush when
-        the interval has passed."""
+        (the MCAP writer costs ~10 µs a message, so small ticks are grouped) or once the
+        next tick, expected as far on as this one, would end ``group_ns`` or more of run
+        time after the first buffered tick began (so log_times follow the run's clock);
+        flush when the interval has passed."""
         if self._closed:
             return
         tick, start_ns, end_ns, root_status, teardown = record
@@ -320,7 +334,13 @@ class Recorder(Subscriber):
             )
             return
         self._tick_rows.append(row)
-        if len(self._changes) + len(self._write_rows) >= self.group_events:
+        buffered = len(self._changes) + len(self._write_rows)
+        next_end, self._last_end_ns = 2 * end_ns - self._last_end_ns, end_ns
+        if buffered and self._group_start_ns is None:
+            self._group_start_ns = start_ns
+        if buffered >= self.group_events or (
+            buffered and next_end - self._group_start_ns >= self.group_ns  # type: ignore[operator]
+        ):
             self._write_events(tick)
             self._write_ticks()
             self._end_chunk_if_full()
@@ -445,6 +465,7 @@ class Recorder(Subscriber):
         )
         self.event_count += rows + len(writes)
         self.last_seq = last[0]
+        self._group_start_ns = None
         changes.clear()
         times.clear()
         segments.clear()

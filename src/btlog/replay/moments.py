@@ -73,16 +73,41 @@ class Moment:
 
 @dataclass(frozen=True)
 class Resolved:
-    """A moment resolved against a run: apply the events with seq below ``count`` (the
-    first ``count`` events, seqs being gap-free).
+    """A moment resolved against a run: what every header shows (``show``, ``explain``,
+    ``--json``, ``replay``, the viewer), computed here and nowhere else.
 
-    ``t_ns`` is the moment's time since the run started (for ``tick:``, ``seq:`` and
-    ``end``, the time of the last event applied; 0 when none is).
+    ``count``: apply the events with seq below it (the first ``count`` events, seqs being
+    gap-free); ``seq`` is then the last event applied (None before the first).
+    ``t_ns``: the moment's own time since the run started: the time asked for a time,
+    the end of tick N for ``tick:N``, event N's time for ``seq:N``, the run's end for
+    ``end``. ``tick``: the moment's tick: N for ``tick:N``, event N's tick for ``seq:N``,
+    for a time the last tick started at or before it (0 before the first tick).
+    ``last_event_t_ns``: the time of the last event applied (None before the first), given
+    separately because a moment often falls between events.
     """
 
     moment: Moment
     count: int
     t_ns: int
+    tick: int = 0
+    last_event_t_ns: int | None = None
+
+    @property
+    def seq(self) -> int | None:
+        """The last event applied (None when none is)."""
+        return self.count - 1 if self.count else None
+
+    def to_json(self) -> dict:
+        """The moment as JSON: ``at`` as asked, ``seq``, ``tick``, ``t_ns`` and
+        ``last_event_t_ns`` as above, and ``count``."""
+        return {
+            "at": self.moment.text,
+            "seq": self.seq,
+            "tick": self.tick,
+            "t_ns": self.t_ns,
+            "last_event_t_ns": self.last_event_t_ns,
+            "count": self.count,
+        }
 
 
 @dataclass(frozen=True)
@@ -90,9 +115,12 @@ class RunExtent:
     """What resolving a moment needs to know about a run.
 
     ``count_at(t_ns)`` is the number of events with ``t_ns`` at most ``t_ns``;
-    ``count_after_tick(n)`` the number of events of ticks up to ``n``; ``time_of(count)``
-    the time of event ``count - 1`` (0 for ``count == 0``). ``started_at_ns`` is the
-    start wall time in ns since the epoch (None when the recording has none).
+    ``count_after_tick(n)`` the number of events of ticks up to ``n``; ``keys_of(count)``
+    the (time, tick) of event ``count - 1`` ((0, 0) for ``count == 0``);
+    ``tick_end(n)`` the end time of the last tick up to ``n`` that has a record (None
+    when none has); ``tick_at(t_ns)`` the last tick that started at or before ``t_ns``
+    (0 when none did). ``started_at_ns`` is the start wall time in ns since the epoch
+    (None when the recording has none).
     """
 
     events: int
@@ -101,7 +129,9 @@ class RunExtent:
     started_at_ns: int | None
     count_at: Callable[[int], int]
     count_after_tick: Callable[[int], int]
-    time_of: Callable[[int], int]
+    keys_of: Callable[[int], tuple[int, int]]
+    tick_end: Callable[[int], int | None]
+    tick_at: Callable[[int], int]
     started_at_zone: object = UTC
 
     @classmethod
@@ -109,24 +139,50 @@ class RunExtent:
         cls,
         times: Sequence[int],
         ticks: Sequence[int],
-        end_ns: int,
-        last_tick: int,
+        tick_records: Sequence[tuple[int, int, int]],
         started_at: str | None,
     ) -> RunExtent:
         """The extent of a run given its events' ``t_ns`` and ``tick`` in seq order (both
-        never decrease), the end of its last tick and its ``started_at`` metadata: what a
-        live run knows of itself, resolved exactly as the read model resolves it."""
+        never decrease), its tick records ``(tick, start_ns, end_ns)`` in order and its
+        ``started_at`` metadata: what a live run knows of itself, resolved exactly as the
+        read model resolves it."""
         started_ns, zone = parse_started_at(started_at)
+        numbers = [record[0] for record in tick_records]
+        starts = [record[1] for record in tick_records]
+        end_ns = max((record[2] for record in tick_records), default=0)
+
+        def tick_end(tick: int) -> int | None:
+            index = bisect_right(numbers, tick) - 1
+            return tick_records[index][2] if index >= 0 else None
+
+        def tick_at(t_ns: int) -> int:
+            index = bisect_right(starts, t_ns) - 1
+            return numbers[index] if index >= 0 else 0
+
         return cls(
             events=len(times),
             duration_ns=max(end_ns, times[-1] if times else 0),
-            last_tick=max(last_tick, ticks[-1] if ticks else 0),
+            last_tick=max(numbers[-1] if numbers else 0, ticks[-1] if ticks else 0),
             started_at_ns=started_ns,
             count_at=lambda t_ns: bisect_right(times, t_ns),
             count_after_tick=lambda tick: bisect_right(ticks, tick),
-            time_of=lambda count: times[count - 1] if count > 0 else 0,
+            keys_of=lambda count: (times[count - 1], ticks[count - 1]) if count > 0 else (0, 0),
+            tick_end=tick_end,
+            tick_at=tick_at,
             started_at_zone=zone,
         )
+
+
+def before_start() -> Resolved:
+    """The moment before the run's first event (the viewer's ``#seq=-1``)."""
+    return Resolved(Moment(SEQ, -1, "seq:-1"), 0, 0, 0, None)
+
+
+def time_moment(t_ns: int) -> str:
+    """The moment text of a time since the start, exact and short: ``8.4s``, ``0s``."""
+    whole, fraction = divmod(t_ns, 1_000_000_000)
+    digits = f"{fraction:09d}".rstrip("0")
+    return f"{whole}.{digits}s" if digits else f"{whole}s"
 
 
 def parse_moment(text: str | Moment) -> Moment:
@@ -210,15 +266,21 @@ def parse_started_at(text: str | None) -> tuple[int | None, object]:
 
 
 def resolve_moment(moment: str | Moment, run: RunExtent) -> Resolved:
-    """How many events the moment covers in ``run``; MomentError when it is outside it."""
+    """How many events the moment covers in ``run``, and its seq, tick and time
+    (``Resolved``); MomentError when it is outside the run."""
     moment = parse_moment(moment)
     if moment.kind == END:
-        return Resolved(moment, run.events, run.time_of(run.events))
+        return _resolved(moment, run, run.events, run.duration_ns, run.last_tick)
     if moment.kind == SEQ:
         return _at_seq(moment, run)
     if moment.kind == TICK:
         return _at_tick(moment, run)
     return _at_time(moment, _time_since_start(moment, run), run)
+
+
+def _resolved(moment: Moment, run: RunExtent, count: int, t_ns: int, tick: int) -> Resolved:
+    last = run.keys_of(count)[0] if count else None
+    return Resolved(moment, count, t_ns, tick, last)
 
 
 def _at_seq(moment: Moment, run: RunExtent) -> Resolved:
@@ -229,7 +291,8 @@ def _at_seq(moment: Moment, run: RunExtent) -> Resolved:
             f"moment {moment.text!r} is after the end of the run (last event seq:{run.events - 1})"
         )
     count = moment.value + 1
-    return Resolved(moment, count, run.time_of(count))
+    t_ns, tick = run.keys_of(count)
+    return Resolved(moment, count, t_ns, tick, t_ns)
 
 
 def _at_tick(moment: Moment, run: RunExtent) -> Resolved:
@@ -238,7 +301,9 @@ def _at_tick(moment: Moment, run: RunExtent) -> Resolved:
             f"moment {moment.text!r} is after the end of the run (last tick {run.last_tick})"
         )
     count = run.count_after_tick(moment.value)
-    return Resolved(moment, count, run.time_of(count))
+    end = run.tick_end(moment.value)
+    t_ns = max(end if end is not None else 0, run.keys_of(count)[0])
+    return _resolved(moment, run, count, t_ns, moment.value)
 
 
 def _time_since_start(moment: Moment, run: RunExtent) -> int:
@@ -284,7 +349,7 @@ def _at_time(moment: Moment, t_ns: int, run: RunExtent) -> Resolved:
         raise MomentError(
             f"moment {moment.text!r} is after the end of the run ({_seconds(run.duration_ns)})"
         )
-    return Resolved(moment, run.count_at(t_ns), t_ns)
+    return _resolved(moment, run, run.count_at(t_ns), t_ns, run.tick_at(t_ns))
 
 
 def _seconds(ns: int) -> str:

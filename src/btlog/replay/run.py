@@ -133,7 +133,9 @@ class Run:
             started_ns,
             self._count_at,
             self._count_after_tick,
-            self._time_of,
+            self._keys_of,
+            self._tick_end,
+            self._tick_at,
             zone,
         )
 
@@ -242,13 +244,30 @@ class Run:
     def _count_after_tick(self, tick: int) -> int:
         return self._count_where("tick", tick)
 
-    def _time_of(self, count: int) -> int:
-        """The time of event ``count - 1`` (0 before any event)."""
+    def _keys_of(self, count: int) -> tuple[int, int]:
+        """(time, tick) of event ``count - 1`` ((0, 0) before any event)."""
         if count <= 0:
-            return 0
+            return 0, 0
         _state, batch = self._block((count - 1) // self.snapshot_every)
         keys = batch.keys_of(count - 1)
-        return 0 if keys is None else keys[0]
+        return (0, 0) if keys is None else keys
+
+    def _tick_end(self, tick: int) -> int | None:
+        """The end time of the last recorded tick up to ``tick`` (None if none)."""
+        return self.con.execute(
+            f"SELECT arg_max(end_ns, tick) FROM {self._prefix}ticks "
+            "WHERE run_id = $run_id AND tick <= $tick",
+            {"run_id": self._stored_id, "tick": tick},
+        ).fetchone()[0]  # type: ignore[index]
+
+    def _tick_at(self, t_ns: int) -> int:
+        """The last tick that started at or before ``t_ns`` (0 if none did)."""
+        found = self.con.execute(
+            f"SELECT max(tick) FROM {self._prefix}ticks "
+            "WHERE run_id = $run_id AND start_ns <= $t_ns",
+            {"run_id": self._stored_id, "t_ns": t_ns},
+        ).fetchone()
+        return 0 if found is None or found[0] is None else int(found[0])
 
     # -- states --------------------------------------------------------------------------
     def state_at(self, moment: str | Moment) -> tuple[Tree, State]:

@@ -100,8 +100,9 @@ def export_filelog(recording: Recording, output: str | os.PathLike) -> ExportRes
     where = os.fspath(recording.path)
     mutations = sum(isinstance(e, TreeMutation) for e in recording.events)
     if mutations:
+        changed = "once" if mutations == 1 else f"{mutations} times"
         raise SourceError(
-            f"{where}: the tree changed {mutations} times during the run ('Can you …?'); "
+            f"{where}: the tree changed {changed} during the run ('Can you …?'); "
             "a FileLogger2 file holds one tree"
         )
     too_big = [n.uid for n in recording.tree if n.uid > MAX_UID]

@@ -4,7 +4,8 @@
 ``mcap-ros2-support``) carries one message per tick with that tick's status changes,
 as Nav2's BT navigators publish it; ``/behavior_tree_xml`` (``std_msgs/msg/String``)
 carries the tree as BT.CPP's ``WriteTreeToXML`` writes it (every node with its
-``_uid``), which Foxglove's behavior-tree panel matches against the log's uids. Times are
+``_uid``), which Foxglove's behavior-tree panel matches against the log's uids. A node's
+``node_name`` is BT.CPP's ``name()``: its name, or its registration ID when it has none. Times are
 the run's clock: the recording's start plus each event's time. Blackboard writes have no
 place in these messages and are left out (counted).
 """
@@ -71,7 +72,8 @@ def export_nav2(recording: Recording, output: str | os.PathLike) -> ExportResult
         elif isinstance(event, BlackboardWrite):
             writes += 1
     ends = {record.tick: record.end_ns for record in recording.ticks}
-    names = {node.uid: node.name for node in recording.tree}
+    # BT.CPP's name(): the instance name, else the registration ID (what Nav2 logs)
+    names = {node.uid: node.description for node in recording.tree}
     with open(output, "wb") as stream:
         writer = Writer(stream)
         xml_schema = writer.register_msgdef(XML_TYPE, XML_MSGDEF)

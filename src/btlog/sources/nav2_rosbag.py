@@ -225,7 +225,8 @@ def match_uids(entries: list[LogEntry], tree: Tree, where: str) -> tuple[list[in
     if all(e.uid is not None for e in entries):
         for entry in {(e.uid, e.name): e for e in entries}.values():
             node = tree.nodes.get(entry.uid or 0)
-            if node is None or node.name != entry.name:
+            # BT.CPP names a nameless node by its ID (btlog's description); '' is older
+            if node is None or entry.name not in (node.description, node.name):
                 there = "no such node" if node is None else f"it is {node.name!r}"
                 raise SourceError(
                     f"{where}: the log's node {entry.name!r} has uid {entry.uid}, but in the "
@@ -234,7 +235,7 @@ def match_uids(entries: list[LogEntry], tree: Tree, where: str) -> tuple[list[in
         return [e.uid or 0 for e in entries], "uid"
     by_name: dict[str, list[int]] = {}
     for node in tree:
-        by_name.setdefault(node.name, []).append(node.uid)
+        by_name.setdefault(node.description, []).append(node.uid)
     uids: list[int] = []
     for entry in entries:
         found = by_name.get(entry.name, [])

@@ -1,10 +1,15 @@
 """``btlog view --export``: the viewer as one self-contained HTML file.
 
 The page carries each run's events as columns (time, tick, kind, node, status or write)
-and folds them in the browser; the answers to the standard questions are computed here,
-by ``btlog.explain``, after every event that can change them (status changes and tree
-mutations; blackboard writes do not enter the answers), and stored only where they
-change. Nothing is fetched: scripts, styles and data are inlined.
+and its ticks (number, start, end), folds the events in the browser and resolves moments
+there by the rules of ``btlog.replay.moments`` (``api.js``'s ``resolveMoment``, checked
+against it by the tests). The answers to the standard questions are computed here, by
+``btlog.explain`` with the run's history (a ``LiveHistory`` fed the run's events), after
+every event that can change them (status changes and tree mutations; blackboard writes
+do not enter the answers), and stored only where they change; so is the run's story.
+Questions about a named node ("Why did X fail?", "Can you X?") need the recording: the
+page says so and gives the ``btlog ask`` command that answers. Nothing is fetched:
+scripts, styles and data are inlined.
 """
 
 from __future__ import annotations
@@ -13,7 +18,7 @@ from typing import Any
 
 from btlog.explain.hierarchy import current_nodes
 from btlog.explain.questions import QUESTIONS
-from btlog.state import StateProjection
+from btlog.history import LiveHistory
 from btlog.status import STATUS_NAMES, Status
 from btlog.view.model import RunView, answers_json, question_patterns, standard_questions
 from btlog.view.page import page_html
@@ -38,7 +43,7 @@ def run_data(view: RunView) -> dict[str, Any]:
     writes: list[list] = []
     unset = _unset_seqs(view)
     mutations = {m.seq: m for m in run.mutations}
-    projection = StateProjection(run.tree)
+    projection = LiveHistory(run.tree)  # the state and the run's history so far
     changes: dict[str, list] = {"at": [], "sets": []}
     _record_answers(projection, 0, changes)
     for entry in run.timeline():
@@ -55,12 +60,30 @@ def run_data(view: RunView) -> dict[str, Any]:
             columns["st"].append(len(writes))
             kind = "unset" if entry.seq in unset else "set"
             writes.append([entry.scope, entry.key, entry.value, kind])
+            projection.on_write(
+                entry.seq, entry.t_ns, entry.tick, entry.scope or "", entry.key or "",
+                entry.value, kind, entry.uid,
+            )  # fmt: skip
             continue  # writes do not enter the answers
         else:
             columns["st"].append(0)
             projection.on_mutation(mutations[entry.seq])
         _record_answers(projection, entry.seq + 1, changes)
-    return {"meta": view.meta(), "events": {**columns, "writes": writes}, "answers": changes}
+    return {
+        "meta": view.meta(),
+        "events": {**columns, "writes": writes},
+        "ticks": _ticks(view),
+        "answers": changes,
+    }
+
+
+def _ticks(view: RunView) -> dict[str, list[int]]:
+    """The run's tick records as columns (tick, start, end), in order."""
+    _cols, rows = view.database.sql(
+        "SELECT tick, start_ns, end_ns FROM ticks WHERE run_id = $run ORDER BY tick",
+        {"run": view.run.run_id},
+    )
+    return {key: [row[i] for row in rows] for i, key in enumerate(("tick", "start", "end"))}
 
 
 def _unset_seqs(view: RunView) -> set[int]:
@@ -71,11 +94,11 @@ def _unset_seqs(view: RunView) -> set[int]:
     return {row[0] for row in rows}
 
 
-def _record_answers(projection: StateProjection, count: int, changes: dict[str, list]) -> None:
+def _record_answers(projection: LiveHistory, count: int, changes: dict[str, list]) -> None:
     """Append the answers after ``count`` events when they differ from the last ones."""
     tree, state = projection.tree, projection.state
     found = {
-        "answers": answers_json(tree, state),
+        "answers": answers_json(tree, state, projection),
         "current": [n.uid for n in current_nodes(tree, state)],
     }
     if not changes["sets"] or changes["sets"][-1] != found:
@@ -103,6 +126,7 @@ def export_data(
         "patterns": question_patterns(),
         "questions": standard_questions(),
         "can_answer": " ".join(QUESTIONS.values()),
+        "files": [view.run.info.file for view in views],
     }
 
 

@@ -4,7 +4,11 @@ One ``RunView`` per opened run answers the page's questions: the run and its nod
 (``meta``), the state at a moment (statuses, current nodes, blackboard with writers, the
 answers to the standard questions), the events around a moment, the Gantt segments, a
 step by tick, and any question (``answer``, the very function ``btlog ask`` calls).
-A moment is a *count*: the number of events applied (``seq:N`` is count N + 1).
+A moment is any form ``--at`` takes, resolved by ``btlog.replay.moments`` as every other
+command resolves it (the page shows its seq, tick and time, and the last event's time
+apart); the page also names one by a *count*, the number of events applied (``seq:N`` is
+count N + 1), or by a time since the start. Answers and the story read the run's history,
+as ``btlog ask`` and ``btlog explain`` do.
 """
 
 from __future__ import annotations
@@ -19,7 +23,10 @@ from btlog.checks.behaviours import diff_paths
 from btlog.explain.divergence import to_json
 from btlog.explain.hierarchy import current_nodes
 from btlog.explain.questions import _PATTERNS, EXPLAIN_INTENTS, QUESTIONS, answer, explain
+from btlog.explain.story import story
+from btlog.history import History
 from btlog.replay.database import Run, RunDatabase
+from btlog.replay.moments import Resolved, before_start, time_moment
 from btlog.state import State
 from btlog.tree.model import Node, Tree
 
@@ -60,9 +67,9 @@ def question_patterns() -> list[list[str]]:
     return [[intent, re.sub(r"\(\?P<", "(?<", p.pattern)] for intent, p in _PATTERNS]
 
 
-def answers_json(tree: Tree, state: State) -> list[dict[str, Any]]:
-    """The standard answers (Q1-Q6) at a state."""
-    return [a.to_json() for a in explain(tree, state)]
+def answers_json(tree: Tree, state: State, history: History | None) -> list[dict[str, Any]]:
+    """The standard answers (Q1-Q6) at a state, given the run's history."""
+    return [a.to_json() for a in explain(tree, state, history)]
 
 
 class RunView:
@@ -96,35 +103,48 @@ class RunView:
             "warnings": list(info.warnings),
             "nodes": [node_json(n) for n in self.tree],
             "root": self.tree.root.uid,
+            "story": self.story(),
         }
+
+    def story(self) -> dict[str, Any]:
+        """The run's story (``btlog explain REC``'s content, its JSON as it is)."""
+        tree, state = self.run.state_after(self.events)
+        return story(tree, state, self.run.history()).to_json()
 
     def clamp(self, count: int) -> int:
         """``count`` within 0..events."""
         return max(0, min(self.events, count))
 
-    def resolve(self, moment: str) -> int:
-        """The count of a moment (any form ``--at`` takes; ``seq:-1`` is the start)."""
+    def resolve(self, moment: str) -> Resolved:
+        """A moment in any form ``--at`` takes (``seq:-1``: before the first event)."""
         if moment.strip() == "seq:-1":
-            return 0
-        return self.run.resolve(moment).count
+            return before_start()
+        return self.run.resolve(moment)
 
-    def count_at_time(self, t_ns: int) -> int:
-        """The count at a time since the start (every event with ``t_ns`` at most it)."""
-        return self.run.extent.count_at(t_ns) if t_ns >= 0 else 0
+    def at_count(self, count: int) -> Resolved:
+        """The moment right after the first ``count`` events (clamped to the run)."""
+        count = self.clamp(count)
+        return self.resolve(f"seq:{count - 1}")
 
-    def state(self, count: int) -> dict[str, Any]:
+    def at_time(self, t_ns: int) -> Resolved:
+        """The moment at a time since the start (clamped to the run)."""
+        return self.resolve(time_moment(max(0, min(self.run.extent.duration_ns, t_ns))))
+
+    def state(self, moment: Resolved) -> dict[str, Any]:
         """Everything the page shows at a moment."""
-        tree, state = self.run.state_after(self.clamp(count))
+        count = moment.count
+        tree, state = self.run.state_after(count)
         current = [n.uid for n in current_nodes(tree, state)]
         return {
-            "count": self.clamp(count),
-            "t_ns": state.t_ns,
-            "tick": state.tick,
+            "count": count,
+            "moment": moment.to_json(),
+            "t_ns": moment.t_ns,
+            "tick": moment.tick,
             "status": {str(uid): s.name for uid, s in state.status.items() if s.name != "IDLE"},
             "present": sorted(tree.nodes),
             "current": current,
             "blackboard": self.blackboard(state, count),
-            "answers": answers_json(tree, state),
+            "answers": answers_json(tree, state, self.run.history()),
             "events": self.event_rows(count),
         }
 
@@ -173,20 +193,11 @@ class RunView:
             events.append({k: v for k, v in event.items() if v is not None or k == "uid"})
         return {"lo": lo, "rows": events}
 
-    def step_tick(self, count: int, direction: int) -> int:
-        """The count at the end of the next (``direction`` 1) or previous (-1) tick that
-        has events."""
-        count = self.clamp(count)
-        extent = self.run.extent
-        if direction > 0:
-            if count >= self.events:
-                return count
-            _tree, next_event = self.run.state_after(count + 1)
-            return extent.count_after_tick(next_event.tick)
-        if count == 0:
-            return 0
-        _tree, last = self.run.state_after(count)
-        return extent.count_after_tick(last.tick - 1)
+    def step_tick(self, moment: Resolved, direction: int) -> Resolved:
+        """The end of the next (``direction`` 1) or previous (-1) tick, whether or not it
+        has events (within the run's ticks)."""
+        tick = max(0, min(self.run.extent.last_tick, moment.tick + direction))
+        return self.resolve(f"tick:{tick}")
 
     def gantt(self, lo: int = 0, hi: int | None = None) -> dict[str, Any]:
         """The execution nodes' non-IDLE intervals that overlap the time window [lo, hi]
@@ -219,12 +230,13 @@ class RunView:
             "end": [r[3] for r in rows],
         }
 
-    def ask(self, count: int, question: str) -> dict[str, Any]:
-        """The answer ``btlog ask`` gives at this moment (an error message for questions
-        it does not understand)."""
-        tree, state = self.run.state_after(self.clamp(count))
+    def ask(self, moment: Resolved, question: str) -> dict[str, Any]:
+        """The answer ``btlog ask`` gives at this moment: the same ``answer`` with the
+        run's history and the moment's time (an error message for questions it does not
+        understand)."""
+        tree, state = self.run.state_after(moment.count)
         try:
-            return answer(tree, state, question).to_json()
+            return answer(tree, state, question, self.run.history(), moment.t_ns).to_json()
         except ValueError as error:
             return {"question": question, "intent": None, "answer": str(error), "nodes": []}
 

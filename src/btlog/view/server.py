@@ -17,6 +17,7 @@ from importlib import resources
 from typing import Any
 from urllib.parse import parse_qs, urlsplit
 
+from btlog.replay.moments import Resolved
 from btlog.view.model import RunView, question_patterns, standard_questions
 from btlog.view.page import STATIC_FILES, page_html
 
@@ -51,27 +52,28 @@ class ViewerApp:
         view = self.views[int(parts[2])]
         what = parts[3]
         with self.lock:
-            if what == "resolve":
-                return {"count": view.resolve(query.get("at", "end"))}
             if what == "gantt":
                 hi = query.get("hi")
                 return view.gantt(int(query.get("lo", "0")), None if hi is None else int(hi))
-            count = self._count(view, query)
+            moment = self._moment(view, query)
+            if what == "resolve":
+                return moment.to_json()
             if what == "state":
-                return view.state(count)
+                return view.state(moment)
             if what == "step":
-                return {"count": view.step_tick(count, int(query.get("dir", "1")))}
+                return view.step_tick(moment, int(query.get("dir", "1"))).to_json()
             if what == "ask":
-                return view.ask(count, query.get("q", ""))
+                return view.ask(moment, query.get("q", ""))
         raise KeyError(path)
 
     @staticmethod
-    def _count(view: RunView, query: dict[str, str]) -> int:
+    def _moment(view: RunView, query: dict[str, str]) -> Resolved:
+        """The moment a request names: ``at`` (any ``--at`` form), ``t_ns`` or ``count``."""
         if "at" in query:
             return view.resolve(query["at"])
         if "t_ns" in query:
-            return view.count_at_time(int(query["t_ns"]))
-        return view.clamp(int(query.get("count", "0")))
+            return view.at_time(int(query["t_ns"]))
+        return view.at_count(int(query.get("count", "0")))
 
 
 def make_handler(app: ViewerApp) -> type[BaseHTTPRequestHandler]:

@@ -6,14 +6,6 @@
 
 const STATUS_NAMES = ["IDLE", "RUNNING", "SUCCESS", "FAILURE", "SKIPPED"];
 
-/** Parse a deep-link value such as "12.5s", "1500ms" or "12.5" into nanoseconds. */
-function parseTime(text) {
-  const m = /^\s*(-?[0-9]*\.?[0-9]+)\s*(s|ms|us|ns)?\s*$/.exec(text);
-  if (!m) return null;
-  const scale = { s: 1e9, ms: 1e6, us: 1e3, ns: 1 }[m[2] || "s"];
-  return Math.round(parseFloat(m[1]) * scale);
-}
-
 /** The number of values in a sorted array that are at most x. */
 function upperBound(values, x) {
   let lo = 0, hi = values.length;
@@ -40,6 +32,20 @@ function momentText(kind, value) {
   return kind === "seq" ? `seq:${value}` : kind === "tick" ? `tick:${value}` : value;
 }
 
+/** A time since the start as a moment, exact and short ("8.4s"), as btlog writes it. */
+function timeMoment(tNs) {
+  const ns = Math.max(0, Math.round(tNs));
+  const whole = Math.floor(ns / 1e9), fraction = String(ns % 1e9).padStart(9, "0").replace(/0+$/, "");
+  return fraction ? `${whole}.${fraction}s` : `${whole}s`;
+}
+
+/** The query of a moment request: {count}, {t_ns} or {at} (any `--at` form). */
+function momentQuery(request) {
+  if (request.at !== undefined) return `at=${encodeURIComponent(request.at)}`;
+  if (request.t_ns !== undefined) return `t_ns=${Math.round(request.t_ns)}`;
+  return `count=${request.count}`;
+}
+
 class ServerSource {
   /** The page served by `btlog view`: every question goes to the server. */
   async init() {
@@ -52,24 +58,14 @@ class ServerSource {
     if (!response.ok) throw new Error(data.error || response.statusText);
     return data;
   }
-  state(run, count) { return this.get(`/api/run/${run}/state?count=${count}`); }
-  stateAtTime(run, tNs) { return this.get(`/api/run/${run}/state?t_ns=${Math.round(tNs)}`); }
+  state(run, request) { return this.get(`/api/run/${run}/state?${momentQuery(request)}`); }
   gantt(run, lo, hi) {
     const window = lo === undefined ? "" : `?lo=${Math.floor(lo)}&hi=${Math.ceil(hi)}`;
     return this.get(`/api/run/${run}/gantt${window}`);
   }
-  async step(run, count, dir) {
-    return (await this.get(`/api/run/${run}/step?count=${count}&dir=${dir}`)).count;
-  }
-  async resolve(run, kind, value) {
-    const at = encodeURIComponent(momentText(kind, value));
-    return (await this.get(`/api/run/${run}/resolve?at=${at}`)).count;
-  }
-  stateAt(run, kind, value) {
-    return this.get(`/api/run/${run}/state?at=${encodeURIComponent(momentText(kind, value))}`);
-  }
-  ask(run, count, question) {
-    return this.get(`/api/run/${run}/ask?count=${count}&q=${encodeURIComponent(question)}`);
+  ask(run, moment, question) {
+    return this.get(`/api/run/${run}/ask?count=${moment.count}&t_ns=${moment.t_ns}` +
+      `&at=${encodeURIComponent(moment.at)}&q=${encodeURIComponent(question)}`);
   }
 }
 
@@ -81,6 +77,7 @@ class EmbeddedRun {
     this.t = ev.t; this.tick = ev.tick; this.kind = ev.kind; this.uid = ev.uid;
     this.st = ev.st; this.prev = ev.prev; this.writes = ev.writes;
     this.answers = data.answers;          // {at: [count...], sets: [[answer...]...]}
+    this.ticks = data.ticks;              // {tick: [...], start: [...], end: [...]}
     this.every = 1024;
     let maxUid = 0;
     for (const n of this.meta.nodes) maxUid = Math.max(maxUid, n.uid);
@@ -103,8 +100,42 @@ class EmbeddedRun {
     }
     return status;
   }
-  state(count) {
-    count = Math.max(0, Math.min(this.t.length, count));
+  /** A moment resolved as btlog.replay.moments resolves it: the same count, seq, tick,
+   * time and last event's time (tests/test_view_browser.py compares the two). */
+  resolve(text) {
+    const n = this.t.length, s = String(text).trim().toLowerCase();
+    const lastTime = (count) => (count ? this.t[count - 1] : null);
+    const made = (count, tNs, tick) => ({ at: String(text), count, seq: count ? count - 1 : null,
+      t_ns: tNs, tick, last_event_t_ns: lastTime(count) });
+    if (s === "seq:-1") return made(0, 0, 0);
+    if (s === "end") return made(n, this.meta.duration_ns, this.meta.last_tick);
+    let m = /^seq\s*:\s*(\d+)$/.exec(s);
+    if (m) {
+      const seq = Number(m[1]);
+      if (seq >= n) throw new Error(`moment '${text}' is after the end of the run (last event seq:${n - 1})`);
+      return { ...made(seq + 1, this.t[seq], this.tick[seq]) };
+    }
+    m = /^tick\s*:\s*(\d+)$/.exec(s);
+    if (m) {
+      const tick = Number(m[1]);
+      if (tick > this.meta.last_tick) {
+        throw new Error(`moment '${text}' is after the end of the run (last tick ${this.meta.last_tick})`);
+      }
+      const count = upperBound(this.tick, tick);
+      const index = upperBound(this.ticks.tick, tick) - 1;
+      const end = index >= 0 ? this.ticks.end[index] : 0;
+      return made(count, Math.max(end, lastTime(count) ?? 0), tick);
+    }
+    const t = exactTime(s);
+    if (t === null) throw new Error(`unparseable moment '${text}' (this page takes seconds, -2s, tick:N, seq:N, end)`);
+    const tNs = t < 0 || s.startsWith("-") ? this.meta.duration_ns - Math.abs(t) : t;
+    if (tNs < 0) throw new Error(`moment '${text}' is before the start of the run`);
+    if (tNs > this.meta.duration_ns) throw new Error(`moment '${text}' is after the end of the run`);
+    const index = upperBound(this.ticks.start, tNs) - 1;
+    return made(upperBound(this.t, tNs), tNs, index >= 0 ? this.ticks.tick[index] : 0);
+  }
+  state(moment) {
+    const count = moment.count;
     const codes = this.statusAt(count);
     const status = {};
     codes.forEach((code, uid) => { if (code) status[uid] = STATUS_NAMES[code]; });
@@ -123,7 +154,7 @@ class EmbeddedRun {
       a.scope < b.scope ? -1 : a.scope > b.scope ? 1 : a.key < b.key ? -1 : a.key > b.key ? 1 : 0);
     const set = this.answersAt(count);
     return {
-      count, t_ns: count ? this.t[count - 1] : 0, tick: count ? this.tick[count - 1] : 0,
+      count, moment, t_ns: moment.t_ns, tick: moment.tick,
       status, present, current: set.current, blackboard, answers: set.answers,
       events: this.events(count),
     };
@@ -170,11 +201,21 @@ class EmbeddedRun {
     for (const uid of open.keys()) close(uid, this.meta.duration_ns);
     return out;
   }
-  step(count, dir) {
-    const n = this.t.length;
-    if (dir > 0) return count >= n ? n : upperBound(this.tick, this.tick[count]);
-    return count <= 0 ? 0 : upperBound(this.tick, this.tick[count - 1] - 1);
+}
+
+/** `12.5s`, `1500ms`, `-2s`… as integer nanoseconds, rounded as btlog rounds them. */
+function exactTime(text) {
+  const m = /^([+-]?)(\d+(?:\.\d*)?|\.\d+)\s*(s|ms|us|ns)?$/.exec(text);
+  if (!m) return null;
+  const scale = { s: 1e9, ms: 1e6, us: 1e3, ns: 1 }[m[3] || "s"];
+  const [whole, fraction = ""] = m[2].split(".");
+  let ns = Number(whole || "0") * scale;
+  const digits = fraction.slice(0, 30);
+  if (digits) {
+    const denominator = 10 ** digits.length;
+    ns += Math.floor((Number(digits) * scale + Math.floor(denominator / 2)) / denominator);
   }
+  return m[1] === "-" ? -ns : ns;
 }
 
 class EmbeddedSource {
@@ -183,42 +224,41 @@ class EmbeddedSource {
     const data = JSON.parse(document.getElementById("btlog-data").textContent);
     this.runs = data.runs.map((run) => new EmbeddedRun(run));
     this.info = { runs: this.runs.map((r) => r.meta), diff: data.diff, patterns: data.patterns,
-      questions: data.questions, can_answer: data.can_answer, report: data.report };
+      questions: data.questions, can_answer: data.can_answer, report: data.report,
+      files: data.files };
     return this.info;
   }
-  async state(run, count) { return this.runs[run].state(count); }
-  async stateAtTime(run, tNs) {
-    return this.runs[run].state(upperBound(this.runs[run].t, tNs));
+  async state(run, request) {
+    const r = this.runs[run];
+    let moment;
+    if (request.at !== undefined) moment = r.resolve(request.at);
+    else if (request.t_ns !== undefined) {
+      moment = r.resolve(timeMoment(Math.max(0, Math.min(r.meta.duration_ns, request.t_ns))));
+    } else {
+      const count = Math.max(0, Math.min(r.t.length, request.count));
+      moment = r.resolve(`seq:${count - 1}`);
+    }
+    return r.state(moment);
   }
   async gantt(run, lo, hi) {
     if (this.segments === undefined) this.segments = this.runs.map(() => null);
     if (!this.segments[run]) this.segments[run] = this.runs[run].gantt();
     return this.segments[run];   // every interval, exact: the timeline clips to its window
   }
-  async step(run, count, dir) { return this.runs[run].step(count, dir); }
-  async resolve(run, kind, value) {
-    const r = this.runs[run];
-    if (kind === "seq") return Math.max(0, Math.min(r.t.length, Number(value) + 1));
-    if (kind === "tick") return upperBound(r.tick, Number(value));
-    const t = parseTime(value);
-    if (t === null) throw new Error(`not a time: ${value}`);
-    return t < 0 ? upperBound(r.t, r.meta.duration_ns + t) : upperBound(r.t, t);
-  }
-  async stateAt(run, kind, value) {
-    return this.runs[run].state(await this.resolve(run, kind, value));
-  }
-  async ask(run, count, question) {
+  async ask(run, moment, question) {
     const intent = questionIntent(this.info.patterns, question);
     if (intent === null) {
       return { question, intent: null,
         answer: `Sorry. I don't understand "${question.trim()}". I can answer: ${this.info.can_answer}` };
     }
-    if (intent === "can") {
-      return { question, intent, answer: "\"Can you X?\" is answered by `btlog view` on the recording " +
-        "(this exported page holds the standard answers only)." };
-    }
-    const found = this.runs[run].answersAt(count).answers.find((a) => a.intent === intent);
-    return { ...found, question };
+    const found = this.runs[run].answersAt(moment.count).answers.find((a) => a.intent === intent);
+    if (found) return { ...found, question };
+    const at = moment.seq === null ? "tick:0" : `seq:${moment.seq}`;
+    return { question, intent, offline: true, answer: "This exported page cannot answer that " +
+      "offline: it holds the standard answers (" +
+      this.info.questions.map(([, q]) => q).join(" ") + ") at every moment, and this question " +
+      `needs the recording. Ask it there: btlog ask ${this.info.files[run]} --at ${at} ` +
+      JSON.stringify(question.trim()) };
   }
 }
 

@@ -1,7 +1,11 @@
 // btlog view: the page - one pane per run (tree, timeline, side panels), the moment of
 // each pane, keyboard stepping (arrows by event, Shift+arrows by tick), play at 1x/10x,
-// deep links (#seq=N, #tick=N, #t=12.5s; b.seq=... for the second run) that the URL
-// follows, and for two runs the divergence table aligned as `btlog diff` aligns them.
+// search by name/type/path, deep links (#seq=N, #tick=N, #t=12.5s; b.seq=... for the
+// second run) that the URL follows, and for two runs the divergence table aligned as
+// `btlog diff` aligns it. Two panes share the moment (by the runs' clocks) until one is
+// sent somewhere of its own: `#t=5s` moves both, a divergence row moves each to its
+// action. A moment is what btlog resolves it to (btlog.replay.moments): its seq, tick
+// and time, and the last event's time apart.
 "use strict";
 
 class Pane {
@@ -14,23 +18,34 @@ class Pane {
     this.nodes = new Map(meta.nodes.map((n) => [n.uid, n]));
     this.count = meta.events;
     this.state = null;
+    this.link = ["seq", String(meta.events - 1)];   // how the moment was named
     this.pending = null;
-    this.target = null;
     this.busy = false;
     this.selected = null;
+    this.matches = [];
+    this.matchIndex = -1;
     this.root = el("div", { class: "pane", "data-run": index }, parent);
     const head = el("div", { class: "panehead" }, this.root);
     el("span", { class: "label", title: meta.file }, head, meta.label);
     el("span", { class: "muted" }, head, `${meta.final_status || "unfinished"}, ${meta.events} events`);
     this.slider = el("input", { type: "range", min: 0, max: meta.events, value: meta.events,
       "aria-label": "moment" }, head);
-    this.slider.addEventListener("input", () => this.moveTo(Number(this.slider.value)));
+    this.slider.addEventListener("input", () => this.go({ count: Number(this.slider.value) }));
     this.momentText = el("span", { class: "moment" }, head);
     const body = el("div", { class: "body" }, this.root);
     const graphBox = el("div", { class: "graphbox" }, body);
     this.graph = new TreeGraph(graphBox, meta.nodes, meta.root, (uid) => this.select(uid));
     const tools = el("div", { class: "graphtools" }, graphBox);
-    el("button", { type: "button", title: "fit the tree" }, tools, "fit")
+    this.search = el("input", { type: "search", placeholder: "find a node…", title: "find by name, type or path (/); Enter: next",
+      "aria-label": "find a node" }, tools);
+    this.searchCount = el("span", { class: "found muted" }, tools);
+    this.search.addEventListener("input", () => this.find(false));
+    this.search.addEventListener("keydown", (e) => {
+      e.stopPropagation();
+      if (e.key === "Enter") { e.preventDefault(); this.find(true, e.shiftKey ? -1 : 1); }
+      if (e.key === "Escape") { this.search.value = ""; this.find(false); this.search.blur(); }
+    });
+    el("button", { type: "button", title: "the whole tree, readable" }, tools, "fit")
       .addEventListener("click", () => this.graph.fit());
     el("button", { type: "button", title: "expand every subtree" }, tools, "expand all")
       .addEventListener("click", () => this.graph.expandAll());
@@ -45,7 +60,7 @@ class Pane {
     this.panels = new SidePanels(el("div", { class: "side" }, body), this);
     const timelineBox = el("div", { class: "timelinebox" }, this.root);
     this.timeline = new Timeline(timelineBox, meta.nodes, meta.duration_ns,
-      (t) => this.moveToTime(t), (lo, hi) => this.loadGantt(lo, hi),
+      (t) => this.go({ t_ns: t }), (lo, hi) => this.loadGantt(lo, hi),
       (uid) => { this.graph.reveal(uid); this.graph.select(uid); });
     this.root.addEventListener("pointerdown", () => app.focus(this));
   }
@@ -56,28 +71,33 @@ class Pane {
     this.timeline.setSegments(segments, lo, hi);
   }
 
-  /** Go to a moment (a count of events applied); requests are coalesced. */
-  moveTo(count) {
-    count = Math.max(0, Math.min(this.meta.events, Math.round(count)));
-    this.target = count;
-    return this.request(() => this.app.source.state(this.index, count));
+  /** Go to a moment: {count} (events applied), {t_ns} or {at} (any `--at` form).
+   * Requests are coalesced; the other pane follows by time while the panes are linked
+   * (not when `follow` is false: this pane is the one following). */
+  go(request, follow = true) {
+    if (request.count !== undefined) {
+      request = { count: Math.max(0, Math.min(this.meta.events, Math.round(request.count))) };
+      this.link = ["seq", String(request.count - 1)];
+    } else if (request.t_ns !== undefined) {
+      request = { t_ns: Math.max(0, Math.min(this.meta.duration_ns, request.t_ns)) };
+      this.link = ["t", timeMoment(request.t_ns)];
+    }
+    this.target = request;
+    if (follow) this.app.leader = this;
+    return this.request(() => this.app.source.state(this.index, request), follow);
   }
 
-  moveToTime(tNs) {
-    this.target = null;
-    return this.request(() => this.app.source.stateAtTime(this.index, tNs));
-  }
-
-  async request(fetchState) {
-    this.pending = fetchState;
+  async request(fetchState, follow = false) {
+    this.pending = [fetchState, follow];
     if (this.busy) return;
     this.busy = true;
     try {
       while (this.pending) {
-        const next = this.pending;
+        const [next, lead] = this.pending;
         this.pending = null;
         const state = await next();
         await this.show(state);
+        if (lead) this.app.follow(this, state.moment);
       }
     } catch (error) {
       this.app.toast(String(error.message || error));
@@ -88,16 +108,24 @@ class Pane {
 
   async show(state) {
     this.state = state;
+    this.moment = state.moment;
     this.count = state.count;
     if (!this.pending) this.target = null;
     this.graph.update(state);
     if (state.current.length) this.graph.follow(state.current[0]);
-    this.timeline.setCursor(state.t_ns);
+    this.timeline.setCursor(state.moment.t_ns);
+    this.timeline.follow(state.current);
     this.slider.value = state.count;
-    const seq = state.count - 1;
-    this.momentText.textContent = `seq ${seq} \u00b7 tick ${state.tick} \u00b7 ` +
-      `${(state.t_ns / 1e9).toFixed(3)} s / ${(this.meta.duration_ns / 1e9).toFixed(1)} s`;
+    const m = state.moment;
+    const last = m.last_event_t_ns !== null && m.last_event_t_ns !== m.t_ns
+      ? ` (last event ${(m.last_event_t_ns / 1e9).toFixed(3)} s)` : "";
+    this.momentText.textContent = `${m.seq === null ? "before the first event" : "seq " + m.seq}` +
+      ` \u00b7 tick ${m.tick} \u00b7 ${(m.t_ns / 1e9).toFixed(3)} s${last} / ` +
+      `${(this.meta.duration_ns / 1e9).toFixed(1)} s`;
     this.root.setAttribute("data-count", state.count);
+    this.root.setAttribute("data-seq", m.seq === null ? -1 : m.seq);
+    this.root.setAttribute("data-tick", m.tick);
+    this.root.setAttribute("data-t-ns", m.t_ns);
     this.panels.showAnswers(state.answers);
     this.panels.showBlackboard(state.blackboard);
     this.panels.showNode(this.selected, state);
@@ -111,21 +139,50 @@ class Pane {
     if (this.state) this.panels.showNode(uid, this.state);
   }
 
+  /** Search: the matches as typed; Enter jumps to the next (Shift+Enter the previous):
+   * the node is opened, centred and selected, and its Gantt row scrolled to. */
+  find(jump, dir = 1) {
+    const text = this.search.value;
+    const matches = this.graph.find(text);
+    if (text !== this.lastSearch) { this.matchIndex = -1; this.lastSearch = text; }
+    this.matches = matches;
+    for (const g of this.graph.nodeLayer.querySelectorAll("g.node.match")) g.classList.remove("match");
+    this.graph.mark([], "match");
+    for (const uid of matches) this.graph.elements.get(uid)?.classList.add("match");
+    if (!jump || !matches.length) {
+      this.searchCount.textContent = text.trim() ? `${matches.length} found` : "";
+      return;
+    }
+    this.matchIndex = (this.matchIndex + dir + matches.length) % matches.length;
+    const uid = matches[this.matchIndex];
+    this.graph.reveal(uid);
+    for (const m of matches) this.graph.elements.get(m)?.classList.add("match");
+    this.graph.select(uid);
+    this.timeline.showRow(uid);
+    this.searchCount.textContent = `${this.matchIndex + 1}/${matches.length}`;
+  }
+
   /** One event (or one tick) on from the moment last asked for, shown or not yet. */
-  async step(dir, byTick) {
-    const from = this.target ?? this.count;
-    if (byTick) return this.moveTo(await this.app.source.step(this.index, from, dir));
-    return this.moveTo(from + dir);
+  step(dir, byTick) {
+    const moment = this.moment;
+    if (byTick) {
+      const tick = Math.max(0, Math.min(this.meta.last_tick, (moment ? moment.tick : 0) + dir));
+      this.link = ["tick", String(tick)];
+      this.app.leader = this;
+      return this.request(() => this.app.source.state(this.index, { at: `tick:${tick}` }), true);
+    }
+    const from = this.target?.count ?? this.count;
+    return this.go({ count: from + dir });
   }
 
   async ask(question) {
-    if (!question.trim()) return;
-    this.panels.showAsked(await this.app.source.ask(this.index, this.count, question));
+    if (!question.trim() || !this.moment) return;
+    this.panels.showAsked(await this.app.source.ask(this.index, this.moment, question));
   }
 
   /** This pane's part of the URL fragment. */
   hashPart() {
-    return `${this.prefix}seq=${this.count - 1}`;
+    return `${this.prefix}${this.link[0]}=${this.link[1]}`;
   }
 }
 
@@ -137,6 +194,8 @@ class App {
     this.focused = null;
     this.playing = null;
     this.writtenHash = null;
+    this.linked = false;
+    this.leader = null;
   }
 
   async start() {
@@ -151,15 +210,12 @@ class App {
       el("pre", {}, details, info.report);
     }
     if (info.diff) this.buildDiff(info.diff);
-    // The moments are asked for first: the answers arrive while the panes are drawn.
-    const moments = this.hashMoments(location.hash, info.runs);
-    const states = moments.map((moment, i) => this.momentState(i, moment));
     const panes = el("div", { class: "panes" + (info.runs.length > 1 ? " two" : "") }, this.root);
     info.runs.forEach((meta, i) => this.panes.push(new Pane(this, i, meta, panes)));
     this.focus(this.panes[0]);
     if (info.diff) this.markDivergent(info.diff);
-    await Promise.all(this.panes.map((pane, i) => pane.request(() => states[i])));
-    this.panes.forEach((p) => p.graph.home(p.state?.current[0]));
+    await this.openHash(location.hash);
+    this.panes.forEach((p) => p.graph.home());
     this.panes.forEach((p) => p.loadGantt());
     window.addEventListener("hashchange", () => {
       if (location.hash !== this.writtenHash) this.openHash(location.hash);
@@ -177,6 +233,16 @@ class App {
     const next = el("button", { type: "button", title: "next event (\u2192)" }, bar, "\u25b6");
     this.speed = el("select", { "aria-label": "speed" }, bar);
     for (const s of ["1", "10"]) el("option", { value: s }, this.speed, `${s}\u00d7`);
+    if (info.runs.length > 1) {
+      const label = el("label", { class: "link", title: "both runs at the same time" }, bar);
+      this.linkBox = el("input", { type: "checkbox", "aria-label": "share the moment" }, label);
+      label.appendChild(document.createTextNode(" share the moment"));
+      this.linkBox.addEventListener("change", () => {
+        this.setLinked(this.linkBox.checked);
+        this.linkBox.blur();
+        if (this.linked) this.follow(this.focused, this.focused.moment);
+      });
+    }
     el("span", { class: "hint" }, bar,
       "\u2190/\u2192 event \u00b7 Shift+\u2190/\u2192 tick \u00b7 space play \u00b7 drag the timeline to " +
       "scrub, wheel on it to zoom, click a row's name to find the node");
@@ -190,6 +256,20 @@ class App {
     next.addEventListener("click", () => this.focused.step(1, false));
     this.playButton.addEventListener("click", () => this.togglePlay());
     for (const w of info.runs.flatMap((r) => r.warnings)) this.toast(w);
+  }
+
+  setLinked(linked) {
+    this.linked = linked && this.panes.length > 1;
+    if (this.linkBox) this.linkBox.checked = this.linked;
+    this.writeHash();
+  }
+
+  /** While linked, the other panes go to the moment's time in their own runs. */
+  follow(leader, moment) {
+    if (!this.linked || !moment) return;
+    for (const pane of this.panes) {
+      if (pane !== leader) pane.go({ t_ns: moment.t_ns }, false);
+    }
   }
 
   buildDiff(diff) {
@@ -210,8 +290,9 @@ class App {
         el("td", {}, r, row.op === "equal" ? "=" : row.op === "only_a" ? "\u2190 only A" : "only B \u2192");
         el("td", {}, r, row.b ? row.b.action : "");
         r.addEventListener("click", () => {
-          if (row.a) this.panes[0].moveTo(row.a.seq + 1);
-          if (row.b && this.panes[1]) this.panes[1].moveTo(row.b.seq + 1);
+          this.setLinked(false);   // each run goes to its own action
+          if (row.a) this.panes[0].go({ count: row.a.seq + 1 }, false);
+          if (row.b && this.panes[1]) this.panes[1].go({ count: row.b.seq + 1 }, false);
         });
       }
     }
@@ -232,7 +313,7 @@ class App {
     pane.root.classList.add("focused");
   }
 
-  /** The moment a URL fragment names for each run: [kind, value], or null (its end). */
+  /** The moment a URL fragment names for each run: [kind, value], or null. */
   hashMoments(hash, runs) {
     const parts = new Map();
     for (const piece of hash.replace(/^#/, "").split("&")) {
@@ -246,31 +327,46 @@ class App {
     });
   }
 
-  /** The state at a run's deep-linked moment (its end, with a message, when unknown). */
-  momentState(index, moment) {
-    const end = () => this.source.state(index, this.info.runs[index].events);
-    if (moment === null) return end();
-    return this.source.stateAt(index, moment[0], moment[1]).catch((error) => {
-      this.toast(`#${index ? "b." : ""}${moment[0]}=${moment[1]}: ${error.message || error}`);
-      return end();
-    });
-  }
-
-  /** Open the moments a URL fragment names. */
+  /** Open the moments a URL fragment names. One moment for two runs links them: `#t=`
+   * puts both at that time, `#seq=N` (or `#b.seq=N`) puts one there and the other at its
+   * time; a moment for each unlinks them. No moment: the runs' ends. */
   async openHash(hash) {
     const moments = this.hashMoments(hash, this.info.runs);
-    await Promise.all(this.panes.map((pane, i) => pane.request(() => this.momentState(i, moments[i]))));
+    const named = moments.filter((m) => m !== null).length;
+    this.setLinked(this.panes.length > 1 && named <= 1);
+    if (this.linked && moments[0] && moments[0][0] === "t") moments[1] = moments[0];
+    const leader = moments.findIndex((m) => m !== null);
+    const requests = this.panes.map((pane, i) => {
+      const moment = moments[i];
+      if (moment === null && this.linked && leader >= 0) return null;   // follows the leader
+      const at = moment === null ? "end" : momentText(moment[0], moment[1]);
+      pane.link = moment === null ? ["seq", String(pane.meta.events - 1)] : moment;
+      return pane.request(() => this.source.state(i, { at }).catch((error) => {
+        this.toast(`#${i ? "b." : ""}${moment ? moment.join("=") : "end"}: ${error.message || error}`);
+        pane.link = ["seq", String(pane.meta.events - 1)];
+        return this.source.state(i, { at: "end" });
+      }), i === leader);
+    });
+    await Promise.all(requests.filter((r) => r !== null));
+    await Promise.all(this.panes.map((p) => p.busy ? new Promise((done) => {
+      const wait = () => (p.busy ? setTimeout(wait, 20) : done());
+      wait();
+    }) : null));
   }
 
   writeHash() {
-    const hash = "#" + this.panes.map((p) => p.hashPart()).join("&");
+    if (this.panes.some((p) => !p.state)) return;
+    const leader = this.leader && this.panes.includes(this.leader) ? this.leader : this.panes[0];
+    const parts = this.linked ? [leader.hashPart()] : this.panes.map((p) => p.hashPart());
+    if (this.linked && leader.link[0] === "t") parts[0] = `t=${leader.link[1]}`;
+    const hash = "#" + parts.join("&");
     if (hash === location.hash) return;
     this.writtenHash = hash;
     history.replaceState(null, "", hash);
   }
 
   key(e) {
-    if (e.target instanceof HTMLInputElement && e.target.type === "text") return;
+    if (e.target instanceof HTMLInputElement && ["text", "search"].includes(e.target.type)) return;
     const pane = this.focused;
     if (e.key === "ArrowRight" || e.key === "ArrowLeft") {
       e.preventDefault();
@@ -280,25 +376,27 @@ class App {
       e.preventDefault();
       this.togglePlay();
     } else if (e.key === "Home") {
-      pane.moveTo(0);
+      pane.go({ count: 0 });
     } else if (e.key === "End") {
-      pane.moveTo(pane.meta.events);
+      pane.go({ count: pane.meta.events });
+    } else if (e.key === "/" || (e.key === "f" && (e.ctrlKey || e.metaKey))) {
+      e.preventDefault();
+      pane.search.focus();
     }
   }
 
   togglePlay() {
     if (this.playing) { this.stop(); return; }
     const pane = this.focused;
-    if (pane.count >= pane.meta.events) pane.moveTo(0);
-    let t = pane.count >= pane.meta.events ? 0 : pane.state ? pane.state.t_ns : 0;
+    let t = pane.count >= pane.meta.events ? 0 : pane.moment ? pane.moment.t_ns : 0;
     let last = performance.now();
     this.playButton.textContent = "\u23f8 pause";
     this.playing = setInterval(() => {
       const now = performance.now();
       t += (now - last) * 1e6 * Number(this.speed.value);
       last = now;
-      if (t >= pane.meta.duration_ns) { pane.moveTo(pane.meta.events); this.stop(); return; }
-      pane.moveToTime(t);
+      if (t >= pane.meta.duration_ns) { pane.go({ count: pane.meta.events }); this.stop(); return; }
+      pane.go({ t_ns: t });
     }, 100);
   }
 

@@ -1,6 +1,9 @@
-// btlog view: the side panels of a pane - the selected node (ports and their blackboard
+// btlog view: the side panels of a pane - the run's story (its failure episodes and
+// subgoals, each a link to its moment), the selected node (ports and their blackboard
 // values), the answers at the moment and the ask box, the event list around the moment,
 // and the blackboard with each entry's writer. Text only (textContent) for recorded data.
+// The story is btlog explain's JSON as it is, rendered generically: episodes with a time,
+// a sentence, the handling and a count; subgoals with a result and times.
 "use strict";
 
 function el(tag, attrs = {}, parent = null, text = null) {
@@ -21,6 +24,8 @@ class SidePanels {
   /** The panels of one pane; `pane` gives nodes, the moment and the ask call. */
   constructor(box, pane) {
     this.pane = pane;
+    this.storyBox = el("section", { class: "story" }, box);
+    this.showStory(pane.meta.story);
     this.nodeBox = el("section", { class: "selection" }, box);
     el("h2", {}, this.nodeBox, "Node");
     this.nodeBody = el("div", { class: "muted" }, this.nodeBox, "Click a node to see its ports.");
@@ -51,6 +56,56 @@ class SidePanels {
     return n ? `${n.name || n.type} #${uid}` : `#${uid}`;
   }
 
+  /** The run's story: a header, its failure episodes and subgoals as links. */
+  showStory(story) {
+    const box = this.storyBox;
+    box.replaceChildren();
+    el("h2", {}, box, "The run's story");
+    if (!story) { el("div", { class: "muted" }, box, "(no story)"); return; }
+    const seconds = (ns) => (ns / 1e9).toFixed(3) + " s";
+    const outcome = [story.goal && `Goal: ${story.goal}.`, story.outcome && `Outcome: ${story.outcome}` +
+      (story.duration_ns !== undefined ? ` after ${seconds(story.duration_ns)}` : "") + "."]
+      .filter(Boolean).join(" ");
+    el("div", { class: "storyhead" }, box, outcome);
+    if (story.why) el("div", {}, box, story.why);
+    const episodes = story.episodes || [];
+    el("div", { class: "muted" }, box, episodes.length ? `Failures: ${episodes.length}` +
+      (episodes.length === 1 ? "" : " (episodes told once)") : "No failures.");
+    const list = el("ol", { class: "episodes" }, box);
+    for (const episode of episodes) {
+      const item = el("li", {}, list);
+      const t = episode.t_ns ?? 0;
+      const link = el("a", { href: "#", class: "moment-link", "data-t-ns": t }, item,
+        seconds(t) + (episode.count > 1 ? ` (×${episode.count}, last ${seconds(episode.last_t_ns)})` : ""));
+      link.addEventListener("click", (e) => {
+        e.preventDefault();
+        if (episode.seq !== undefined && episode.seq !== null) this.pane.go({ count: episode.seq + 1 });
+        else this.pane.go({ t_ns: t });
+      });
+      const sentence = episode.what_went_wrong ?? episode.sentence ?? episode.text ?? "";
+      if (sentence) el("div", {}, item, sentence);
+      const handling = Array.isArray(episode.handling) ? episode.handling.join("; ") : episode.handling;
+      if (handling) el("div", { class: "muted" }, item, handling);
+    }
+    const subgoals = story.subgoals || [];
+    if (!subgoals.length) return;
+    el("div", { class: "muted" }, box, "Subgoals:");
+    const table = el("table", { class: "kv subgoals" }, box);
+    for (const sub of subgoals) {
+      const tr = el("tr", {}, table);
+      const name = el("td", {}, tr, sub.subgoal ?? sub.name ?? "");
+      if (sub.depth) name.style.paddingLeft = `${0.3 + sub.depth}em`;
+      el("td", {}, tr, sub.result ?? "");
+      const when = el("td", {}, tr);
+      if (sub.start_ns !== undefined && sub.start_ns !== null) {
+        const link = el("a", { href: "#", class: "moment-link" }, when,
+          `${seconds(sub.start_ns)}` + (sub.end_ns !== null && sub.end_ns !== undefined
+            ? ` – ${seconds(sub.end_ns)}` : ""));
+        link.addEventListener("click", (e) => { e.preventDefault(); this.pane.go({ t_ns: sub.start_ns }); });
+      }
+    }
+  }
+
   showAnswers(answers) {
     this.answerList.replaceChildren();
     for (const a of answers) {
@@ -73,11 +128,14 @@ class SidePanels {
       else if (row.kind === "write") {
         text = `${row.scope || "(root)"}.${row.key} = ${showValue(row.value)}  by ${who}`;
       } else text = `inserted ${who}`;
-      const line = el("div", { "data-seq": row.seq }, this.eventList,
-        `${String(row.seq).padStart(6)}  ${seconds(row.t_ns).padStart(10)}  ${row.tick === undefined ? "" : "t" + row.tick}  ${text}`);
+      const line = el("div", { "data-seq": row.seq }, this.eventList);
+      el("span", { class: "seq" }, line, String(row.seq));
+      el("span", { class: "when" }, line,
+        `${seconds(row.t_ns)}${row.tick === undefined ? "" : " t" + row.tick}`);
+      el("span", { class: "what" }, line, text);
       if (row.seq === count - 1) { line.classList.add("now"); now = line; }
       else if (row.seq >= count) line.classList.add("future");
-      line.addEventListener("click", () => this.pane.moveTo(row.seq + 1));
+      line.addEventListener("click", () => this.pane.go({ count: row.seq + 1 }));
     }
     if (now) {
       const box = this.eventList;

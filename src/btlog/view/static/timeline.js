@@ -1,11 +1,13 @@
 // btlog view: the timeline under the tree - a time axis and one row per execution node
 // with its non-IDLE intervals (a Gantt of the run: RUNNING bars, SUCCESS and FAILURE
-// marks), and a cursor at the moment. Drag on it to scrub: onScrub(t_ns).
+// marks), and a cursor at the moment. Drag on it to scrub: onScrub(t_ns). The rows
+// follow the current node (its row is scrolled into view and marked), and a node found
+// by the search is scrolled to and marked as well.
 "use strict";
 
 const STATUS_COLOURS = { RUNNING: "#e0a100", SUCCESS: "#2e7d32", FAILURE: "#c62828",
   SKIPPED: "#00838f" };
-const LABEL_W = 150, AXIS_H = 20, ROW_H = 11;
+const LABEL_W = 170, AXIS_H = 20, ROW_H = 16, ROW_PX = 11;
 
 function niceStep(span) {
   const raw = span / 8, base = Math.pow(10, Math.floor(Math.log10(raw)));
@@ -46,6 +48,8 @@ class Timeline {
     this.cursor = 0;
     this.segments = null;
     this.byRow = [];
+    this.current = new Set();
+    this.found = null;
     this.installScrub();
     box.addEventListener("scroll", () => this.draw(), { passive: true });
     new ResizeObserver(() => this.draw()).observe(box);
@@ -65,6 +69,30 @@ class Timeline {
   }
 
   setCursor(tNs) { this.cursor = tNs; this.drawCursor(); }
+
+  /** Mark the current nodes' rows and scroll the first into view (when it is not). */
+  follow(uids) {
+    this.current = new Set(uids);
+    const rows = uids.map((u) => this.rowOf.get(u)).filter((r) => r !== undefined);
+    if (rows.length) this.scrollToRow(rows[0]);
+    this.draw();
+  }
+
+  /** Mark a found node's row and scroll it into view. */
+  showRow(uid) {
+    this.found = uid;
+    const row = this.rowOf.get(uid);
+    if (row !== undefined) this.scrollToRow(row, true);
+    this.draw();
+  }
+
+  scrollToRow(row, centre = false) {
+    const top = this.box.scrollTop, height = this.box.clientHeight - AXIS_H;
+    const y = row * ROW_H;
+    if (centre || y < top || y + ROW_H > top + height) {
+      this.box.scrollTop = Math.max(0, y - height / 2);
+    }
+  }
 
   plotWidth() { return this.box.clientWidth - LABEL_W - 10; }
 
@@ -106,25 +134,28 @@ class Timeline {
     const ctx = this.canvas.getContext("2d");
     ctx.setTransform(ratio, 0, 0, ratio, 0, 0);
     ctx.fillStyle = "#fff"; ctx.fillRect(0, 0, width, height);
-    ctx.font = "10px system-ui, sans-serif"; ctx.textBaseline = "middle";
+    ctx.font = `${ROW_PX}px system-ui, sans-serif`; ctx.textBaseline = "middle";
     const top = this.box.scrollTop;
     const first = Math.max(0, Math.floor(top / ROW_H));
     const last = Math.min(this.rows.length, Math.ceil((top + height - AXIS_H) / ROW_H) + 1);
     for (let row = first; row < last; row++) {
       const y = AXIS_H + row * ROW_H - top;
-      if (row % 2) { ctx.fillStyle = "#fafafa"; ctx.fillRect(0, y, width, ROW_H); }
       const n = this.rows[row];
-      ctx.fillStyle = "#444";
-      ctx.fillText(clip(n.name || n.type, 26), 4, y + ROW_H / 2);
+      if (this.current.has(n.uid) || this.found === n.uid) {
+        ctx.fillStyle = this.found === n.uid ? "#fff3c4" : "#e3f2fd";
+        ctx.fillRect(0, y, width, ROW_H);
+      } else if (row % 2) { ctx.fillStyle = "#fafafa"; ctx.fillRect(0, y, width, ROW_H); }
+      ctx.fillStyle = this.current.has(n.uid) ? "#1565c0" : "#444";
+      ctx.fillText(fitText(n.name || n.type, ROW_PX, LABEL_W - 8), 4, y + ROW_H / 2);
       if (this.segments) this.drawRow(ctx, row, y);
     }
     ctx.fillStyle = "#fff"; ctx.fillRect(0, 0, width, AXIS_H);
     const step = niceStep(this.hi - this.lo);
-    ctx.strokeStyle = "#e6e6e6"; ctx.fillStyle = "#777";
+    ctx.strokeStyle = "#e6e6e6"; ctx.fillStyle = "#666";
     for (let t = Math.ceil(this.lo / step) * step; t <= this.hi; t += step) {
       const x = Math.round(this.xOf(t)) + 0.5;
       ctx.beginPath(); ctx.moveTo(x, AXIS_H - 4); ctx.lineTo(x, height); ctx.stroke();
-      ctx.fillText(formatSeconds(t), x + 2, 8);
+      ctx.fillText(formatSeconds(t), x + 2, 9);
     }
     this.drawCursor();
   }
