@@ -133,9 +133,15 @@ def test_post_hoc_outputs_are_escaped(
         crafted(folder)
     name, *rest = command
     result = btlog(name, recording, *rest, cwd=folder)
-    assert result.returncode == 0, result.stderr
-    assert_clean(result.stdout)
-    assert "\\n" in result.stdout or "\\x1b" in result.stdout or "\\x9b" in result.stdout
+    output = result.stdout
+    if recording == "crafted.mcap" and rest[-1].startswith("Can you"):
+        # the crafted tree lacks the node: bad input, said on stderr
+        assert result.returncode == 2, result.stderr
+        output = result.stderr
+    else:
+        assert result.returncode == 0, result.stderr
+    assert_clean(output)
+    assert "\\n" in output or "\\x1b" in output or "\\x9b" in output
 
 
 def test_check_reports_are_escaped(recorded: tuple[Path, str]) -> None:

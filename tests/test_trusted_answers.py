@@ -1,6 +1,8 @@
 """Answers a robotics engineer can trust on trees written without the paper's framing.
 
-The expectations files in ``tests/data/answers`` pin what the real command line answers on
+The expectations files in ``tests/data/answers`` (``*.answers.yaml``: not ``*.expect.yaml``,
+which the pytest plugin checks against a recording beside them; these runs are made by
+the test) pin what the real command line answers on
 a small fetch tree and on two Nav2 stand-ins (the default NavigateToPose tree, and the
 shape Nav2 shipped for several releases whose recoveries sit behind a GoalUpdated check).
 The other tests cover each notion as users meet it: the run's story (outcome, runs of the
@@ -42,9 +44,9 @@ EXPECTED = {
     ),
 }
 EXPECTATIONS = {
-    "fetch": DATA / "fetch-coffee.expect.yaml",
-    "nav2": DATA / "nav2-navigate-to-pose.expect.yaml",
-    "nav2-recovery-fallbacks": DATA / "nav2-recovery-fallbacks.expect.yaml",
+    "fetch": DATA / "fetch-coffee.answers.yaml",
+    "nav2": DATA / "nav2-navigate-to-pose.answers.yaml",
+    "nav2-recovery-fallbacks": DATA / "nav2-recovery-fallbacks.answers.yaml",
 }
 
 

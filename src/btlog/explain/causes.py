@@ -60,7 +60,7 @@ def algorithm7(tree: Tree, state: State, history: History | None = None) -> str:
     ``history``, each blamed leaf's failure is grounded (``btlog.explain.grounds``)."""
 
     def render(node: Node) -> str:
-        text, leaf = diagnose(node, state)
+        text, leaf = diagnose(node, state, tree)
         if history is None or leaf is None:
             return text
         return grounded(text, tree, leaf, state.seq, history)

@@ -42,9 +42,9 @@ class ExecutedAction:
     """One activation of an execution node.
 
     ``description`` is d(n); ``parent`` is d(parent) (the immediate parent, shown beside a
-    divergent action); ``subgoal`` is d(nearest SubTree ancestor), or d(root) when the
-    node has none. ``result`` is how the activation ended (SUCCESS/FAILURE), or None
-    when it was halted or the behaviour stopped first.
+    divergent action); ``subgoal`` is d(its subgoal: ``hierarchy.subgoal_node``), or
+    d(root) when the node has none. ``result`` is how the activation ended
+    (SUCCESS/FAILURE), or None when it was halted or the behaviour stopped first.
     """
 
     seq: int

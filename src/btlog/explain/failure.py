@@ -39,9 +39,9 @@ from __future__ import annotations
 from collections.abc import Iterator
 
 from btlog.explain.handlers import handler_of
-from btlog.explain.words import is_named, named_ancestor, words
+from btlog.explain.words import goal_words, is_named, named_ancestor, words
 from btlog.state import State
-from btlog.tree.model import ACTION, CONDITION, DECORATOR, SUBTREE, Node
+from btlog.tree.model import ACTION, CONDITION, DECORATOR, SUBTREE, Node, Tree
 
 NOTHING_WRONG = "Nothing went wrong."
 
@@ -113,19 +113,25 @@ def _clause_node(leaf: Node, handler: Node) -> Node | None:
     return None
 
 
-def _spoken(node: Node) -> Node:
-    """``node`` if it is named, else its nearest named ancestor (or itself at the top)."""
-    return node if is_named(node) else (named_ancestor(node) or node)
+def _spoken(node: Node, goal: str | None) -> str:
+    """The words of ``node`` if it is named, else of its nearest named ancestor; the
+    goal's words (``goal``) when nothing above is named."""
+    named = node if is_named(node) else named_ancestor(node)
+    if named is not None:
+        return words(named)
+    return goal if goal is not None else words(node)
 
 
-def _fallback_sentence(fallback: Node, first: Node, state: State) -> tuple[str, Node] | None:
+def _fallback_sentence(
+    fallback: Node, first: Node, state: State, goal: str | None
+) -> tuple[str, Node] | None:
     since = state.activation.get(fallback.uid)
     if since is None or not state.failed_since(first.uid, since):
         return None
     if failed_by_guard(first, state):
         return None
     leaf = failed_leaf(first, state, since) or first
-    said = words(_spoken(fallback))
+    said = _spoken(fallback, goal)
     text = f"I could not {said} because "
     step = _clause_node(leaf, fallback)
     if step is not None and words(step) != said:
@@ -133,12 +139,15 @@ def _fallback_sentence(fallback: Node, first: Node, state: State) -> tuple[str, 
     return text + f"{words(leaf)} failed.", leaf
 
 
-def _retry_target(retry: Node) -> Node | None:
+def _retry_target(retry: Node, goal: str | None) -> str | None:
     """What a retry's sentence says it retries for (see the module docstring)."""
-    return retry if is_named(retry) else named_ancestor(retry)
+    if is_named(retry):
+        return words(retry)
+    named = named_ancestor(retry)
+    return words(named) if named is not None else goal
 
 
-def _retry_attempt(retry: Node, state: State) -> str | None:
+def _retry_attempt(retry: Node, state: State, goal: str | None) -> str | None:
     attempts = state.retry_attempts.get(retry.uid, 0)
     if attempts <= 0:
         return None
@@ -146,10 +155,10 @@ def _retry_attempt(retry: Node, state: State) -> str | None:
     child = handler.retried(retry) if handler is not None else None
     if child is not None and (failed_by_guard(child, state) or _recovering(retry, child, state)):
         return None
-    target = _retry_target(retry)
+    target = _retry_target(retry, goal)
     if target is None:
         return None
-    return f"I am retrying for attempt {attempts} to {words(target)}."
+    return f"I am retrying for attempt {attempts} to {target}."
 
 
 def _recovering(handler: Node, child: Node, state: State) -> bool:
@@ -161,8 +170,8 @@ def _recovering(handler: Node, child: Node, state: State) -> bool:
     return state.activation.get(child.uid, -1) <= state.last_failure.get(child.uid, -1)
 
 
-def _retry_sentence(retry: Node, state: State) -> tuple[str, Node | None] | None:
-    head = _retry_attempt(retry, state)
+def _retry_sentence(retry: Node, state: State, goal: str | None) -> tuple[str, Node | None] | None:
+    head = _retry_attempt(retry, state, goal)
     if head is None:
         return None
     since = state.activation.get(retry.uid, 0)
@@ -179,31 +188,33 @@ def _retry_sentence(retry: Node, state: State) -> tuple[str, Node | None] | None
     return f"{head} I could not {what} because {words(leaf)} failed.", leaf
 
 
-def diagnose(node: Node | None, state: State) -> tuple[str, Node | None]:
-    """Q6 for one current node (Algorithm 7) and the leaf it blames (None when nothing
-    went wrong, or a retry's leaf is unknown)."""
+def diagnose(node: Node | None, state: State, tree: Tree | None = None) -> tuple[str, Node | None]:
+    """Q6 for one current node (Algorithm 7) and the node it blames (None when nothing
+    went wrong, or a retry's leaf is unknown); ``tree`` gives the goal's words for
+    handlers with nothing named above them."""
     if node is None:
         return NOTHING_WRONG, None
+    goal = goal_words(tree) if tree is not None else None
     child, ancestor = node, node.parent
     while ancestor is not None and ancestor.kind != SUBTREE:
         handler = handler_of(ancestor)
         if handler is not None:
             first = handler.falls_back_from(ancestor)
-            found = None if first is None else _fallback_sentence(ancestor, first, state)
+            found = None if first is None else _fallback_sentence(ancestor, first, state, goal)
             if found is not None:
-                retries = [_retry_attempt(a, state) for a in _retrying(ancestor, child)]
+                retries = [_retry_attempt(a, state, goal) for a in _retrying(ancestor, child)]
                 return " ".join([*(r for r in retries if r), found[0]]), found[1]
             if handler.retried(ancestor) is not None and first is None:
-                retried = _retry_sentence(ancestor, state)
+                retried = _retry_sentence(ancestor, state, goal)
                 if retried is not None:
                     return retried
         child, ancestor = ancestor, ancestor.parent
     return NOTHING_WRONG, None
 
 
-def what_went_wrong(node: Node | None, state: State) -> str:
+def what_went_wrong(node: Node | None, state: State, tree: Tree | None = None) -> str:
     """Q6 for one current node (Algorithm 7): the text of ``diagnose``."""
-    return diagnose(node, state)[0]
+    return diagnose(node, state, tree)[0]
 
 
 def _retrying(node: Node, via: Node) -> Iterator[Node]:

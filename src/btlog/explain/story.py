@@ -282,7 +282,7 @@ def _sentence(tree: Tree, failed: Transition, leaf: Node, history: History) -> s
     """Q6 about the failed leaf right after the handler saw its failure, grounded; the
     cause when Algorithm 7 is silent."""
     then_tree, then = history.state_after(failed.seq + 1)
-    text, blamed = diagnose(then_tree.nodes.get(leaf.uid), then)
+    text, blamed = diagnose(then_tree.nodes.get(leaf.uid), then, then_tree)
     if text != NOTHING_WRONG and blamed is not None:
         return grounded(text, tree, blamed, failed.seq + 1, history)
     if text != NOTHING_WRONG:

@@ -1,0 +1,160 @@
+"""Properties of the answers on random trees with random failures (issue 23).
+
+Random trees come from the differential test's generator, with the names of about half
+their control nodes and decorators removed (as real trees leave them unnamed). After
+every event of a run, every question is asked of the live state and history, and:
+
+(a) no answer speaks of an unnamed control node or decorator: its type never fills a
+    verb slot ("I could not sequence …"); the answers climb to a named node instead;
+(b) the leaf "What went wrong?" blames (Algorithm 7 at the moment) has failed at or
+    before the moment;
+(c) "Why didn't you X?" agrees with X's last activation: it says "I did X." only when
+    that activation succeeded, and never when it failed or was halted.
+
+Live answers equal post-hoc ones (``tests/test_live_posthoc.py``) on the same trees.
+"""
+
+from __future__ import annotations
+
+import random
+import re
+import xml.etree.ElementTree as ET
+
+from hypothesis import HealthCheck, given, settings
+from hypothesis import strategies as st
+
+from btlog.domains.outcomes import Outcomes, scripted_leaf_factory
+from btlog.events import Subscriber
+from btlog.executor.engine import Executor
+from btlog.explain.failure import diagnose
+from btlog.explain.hierarchy import current_nodes
+from btlog.explain.questions import QUESTIONS, answer
+from btlog.explain.words import is_named, words
+from btlog.history import ANY_STATUS, LiveHistory
+from btlog.status import FAILURE, IDLE, SUCCESS
+from btlog.tree.loader import load_tree_text
+from btlog.tree.model import CONDITION, CONTROL, DECORATOR, Tree
+from btlog.tree.registry import NodeType, Registry
+from tests.oracle.random_trees import generate
+
+PLAIN = [q for q in QUESTIONS.values() if "X" not in q]
+
+
+def _registry() -> Registry:
+    registry = Registry()
+    registry.register(NodeType("ScriptedCondition", CONDITION, declared_only=True))
+    return registry
+
+
+def _unnamed_controls(xml: str, seed: int) -> str:
+    """The tree with the names of about half its controls and decorators removed."""
+    rng = random.Random(seed)
+    registry = _registry()
+    root = ET.fromstring(xml)
+    for element in root.iter():
+        known = registry.get(element.tag)
+        if known is not None and known.kind in (CONTROL, DECORATOR) and rng.random() < 0.5:
+            element.attrib.pop("name", None)
+    return ET.tostring(root, encoding="unicode")
+
+
+#: Where an answer puts what the robot does (the verb slots of the templates).
+SLOTS = (
+    r"^I ",
+    r"in order to ",
+    r"could not ",
+    r"unable to ",
+    r"subgoal is to ",
+    r"goal is to ",
+    r"to achieve the (?:sub)?goal \"",
+    r"I did (?:not )?",
+    r"tried to ",
+    r"started to ",
+    r"retrying for attempt \d+ to ",
+    r"\d+\. ",
+    r"I will ",
+    r"After I ",
+)
+
+
+def _forbidden(tree: Tree) -> list[re.Pattern]:
+    """An unnamed control's or decorator's words in a verb slot (those no named node's
+    words contain)."""
+    spoken = {words(n) for n in tree if is_named(n) or n.is_execution}
+    phrases = {words(n) for n in tree if n.kind in (CONTROL, DECORATOR) and not is_named(n)}
+    slots = "|".join(SLOTS)
+    return [
+        re.compile(rf"(?:{slots}){re.escape(p)}\b")
+        for p in phrases
+        if not any(p in other for other in spoken)
+    ]
+
+
+class Checker(Subscriber):
+    """After each event, every question, checked against the properties."""
+
+    def __init__(self, live: LiveHistory, about: list) -> None:
+        self.live = live
+        self.about = about
+        self.forbidden = _forbidden(live.tree)
+        self.checked = 0
+
+    def _check(self) -> None:
+        tree, state, history = self.live.tree, self.live.state, self.live
+        asked = [*PLAIN, *(f"Why didn't you {words(n)}?" for n in self.about)]
+        asked += [f"Why did {words(n)} fail?" for n in self.about]
+        for question in asked:
+            text = answer(tree, state, question, history).text
+            for pattern in self.forbidden:
+                assert not pattern.search(text), (question, text)  # (a)
+        for node in current_nodes(tree, state):
+            _, leaf = diagnose(node, state, tree)
+            if leaf is not None:  # (b)
+                assert state.last_failure.get(leaf.uid, state.seq) < state.seq
+        for node in self.about:  # (c)
+            said = answer(tree, state, f"Why didn't you {words(node)}?", history).text
+            ended = _last_activation_end(node.uid, state.seq, history)
+            if said == f"I did {words(node)}.":
+                assert ended is SUCCESS, (node, said)
+            if ended in (FAILURE, IDLE):
+                assert not said.startswith("I did "), (node, said, ended)
+        self.checked += 1
+
+    def on_status(self, *args) -> None:
+        self._check()
+
+    def on_write(self, *args) -> None:
+        self._check()
+
+
+def _last_activation_end(uid: int, now: int, history: LiveHistory):
+    """How the node's last activation up to ``now`` ended: SUCCESS, FAILURE, IDLE (halted)
+    or None (still running, or it never ran)."""
+    start = history.last([uid], ANY_STATUS, 0, now, starts=True)
+    if start is None:
+        return None
+    if start.status in (SUCCESS, FAILURE):
+        return start.status
+    end = history.first([uid], (SUCCESS, FAILURE, IDLE), start.seq + 1, now)
+    return None if end is None else end.status
+
+
+@settings(
+    max_examples=25,
+    deadline=None,
+    suppress_health_check=[HealthCheck.too_slow],
+)
+@given(st.integers(0, 100_000), st.randoms(use_true_random=False))
+def test_answers_on_random_trees_keep_their_promises(seed: int, rng) -> None:
+    case = generate(seed)
+    tree = load_tree_text(_unnamed_controls(case.xml, seed), _registry())
+    about = rng.sample([n for n in tree if n.is_execution or is_named(n)], 3)
+    outcomes = Outcomes.from_mapping(case.outcomes)
+    executor = Executor(tree, leaf_factory=scripted_leaf_factory(tree, outcomes, seed=3))
+    live = LiveHistory(tree)
+    checker = Checker(live, [live.tree.node(n.uid) for n in about])
+    executor.subscribe(live)
+    executor.subscribe(checker)
+    executor.run(case.max_ticks)
+    executor.close()
+    assert checker.checked > 0
