@@ -37,7 +37,7 @@ checks the candidate and gives the words. Each handler's last such window is loo
 
 from __future__ import annotations
 
-from btlog.explain.failure import NOTHING_WRONG, diagnose
+from btlog.explain.failure import NOTHING_WRONG, decided_by_guard, diagnose
 from btlog.explain.grounds import grounded, grounds
 from btlog.explain.handlers import FallbackHandler, handler_of
 from btlog.explain.hierarchy import current_nodes, per_node
@@ -109,21 +109,26 @@ def actions_below(node: Node) -> list[int]:
     return [n.uid for n in node.walk() if n.kind == ACTION]
 
 
-def by_guard(node: Node, failed: Transition, history: History) -> bool:
-    """True when ``node``'s FAILURE ``failed`` was a guard's: no action below it started
-    in the activation that failed (``btlog.explain.failure.failed_by_guard``, read from
-    the history)."""
+def by_guard(tree: Tree, node: Node, failed: Transition, history: History) -> bool:
+    """True when ``node``'s FAILURE ``failed`` was a guard's
+    (``btlog.explain.failure.decided_by_guard``, its facts read from the history)."""
     actions = actions_below(node)
     if not actions:
-        return True
+        return True  # only conditions or scripts below: nothing else can have decided
     began = activation_start(node, failed.seq + 1, history)
-    return history.first(actions, ANY_STATUS, began, failed.seq + 1, starts=True) is None
+    started = history.first(actions, ANY_STATUS, began, failed.seq + 1, starts=True)
+    broke = history.first(actions, (FAILURE,), began, failed.seq + 1)
+    leaf = tree.nodes.get(cause(tree, node, failed, history).uid)
+    return decided_by_guard(node, leaf, started is not None, broke is not None)
 
 
 def by_design(tree: Tree, node: Node, failed: Transition, history: History) -> bool:
     """True when ``node``'s FAILURE ``failed`` is the tree's own doing (see the module
     docstring): a guard's, or made from a success."""
-    return by_guard(node, failed, history) or cause(tree, node, failed, history).status is SUCCESS
+    return (
+        by_guard(tree, node, failed, history)
+        or cause(tree, node, failed, history).status is SUCCESS
+    )
 
 
 def because(tree: Tree, node: Node, completion: Transition, history: History) -> str:
@@ -229,7 +234,7 @@ def _last_real_failure(tree: Tree, handler: Node, now: int, history: History) ->
         failed = history.last(children, (FAILURE,), 0, hi)
         if failed is None:
             return None
-        if not by_guard(tree.node(failed.uid), failed, history):
+        if not by_guard(tree, tree.node(failed.uid), failed, history):
             return failed
         hi = failed.seq
     return None

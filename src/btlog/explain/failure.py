@@ -27,12 +27,14 @@ a failure of an earlier attempt, or of another branch, is never blamed.
 the tree choosing a branch, not something going wrong: Nav2's ``GoalUpdated`` first in a
 ReactiveFallback, ``IsGoalNearby`` in the ReactiveSequence that decides whether to
 replan. The rule reads the tree's structure and the run, not names: a handler's child
-failed *by guard* when the leaf of its failure is a condition and no action below the
-child started in that activation. A handler whose child failed by guard has nothing to
-say; the walk goes on up, to a handler that holds a real failure (or to "Nothing went
-wrong."). The same test marks guard failures in the run's story and the fleet's causes
-(``btlog.explain.causes.by_design``).
-"""
+failed *by guard* when no action below it failed in that activation, and either no
+action below it started (conditions or scripts decided), or the leaf of its failure is a
+condition that a reactive control (ReactiveSequence, ReactiveFallback, PipelineSequence)
+within the child re-checks on every tick. A condition checked once after actions in a
+plain Sequence (the paper's "check if grasped") is a real failure. A handler whose child
+failed by guard has nothing to say; the walk goes on up, to a handler that holds a real
+failure (or to "Nothing went wrong."). The same test marks guard failures in the run's
+story and the fleet's causes (``btlog.explain.causes.by_design``). """
 
 from __future__ import annotations
 
@@ -88,19 +90,41 @@ def _latest_failed(branch: Node, state: State, since: int) -> Node | None:
     return None if best is None else best[2]
 
 
+#: Controls that tick their earlier children again on every tick: a condition under one
+#: is re-checked while the branch runs, the idiom of a guard.
+REACTIVE_TYPES = frozenset({"ReactiveSequence", "ReactiveFallback", "PipelineSequence"})
+
+
+def decided_by_guard(child: Node, leaf: Node | None, started: bool, failed: bool) -> bool:
+    """The guard rule (see the module docstring), given the leaf of ``child``'s failure,
+    whether an action below ``child`` started in that activation and whether one failed:
+    no action failed, and either no action started (only conditions, or scripts, decided)
+    or the leaf is a condition re-checked by a reactive control within ``child``."""
+    if leaf is None or failed:
+        return False
+    if not started and leaf.kind != ACTION:
+        return True
+    return leaf.kind == CONDITION and _reactive_between(leaf, child)
+
+
+def _reactive_between(leaf: Node, top: Node) -> bool:
+    for ancestor in leaf.ancestors():
+        if ancestor.type in REACTIVE_TYPES:
+            return True
+        if ancestor is top:
+            return False
+    return False
+
+
 def failed_by_guard(child: Node, state: State) -> bool:
-    """True when ``child``'s last failure was a guard's (see the module docstring): its
-    leaf is a condition and no action below ``child`` started in that activation."""
+    """True when ``child``'s last failure was a guard's (``decided_by_guard``)."""
     began, failed = state.activation.get(child.uid), state.last_failure.get(child.uid)
     if began is None or failed is None or failed < began:
         return False
-    leaf = failed_leaf(child, state, began)
-    if leaf is None or leaf.kind != CONDITION:
-        return False
-    return not any(
-        node.kind == ACTION and began <= state.activation.get(node.uid, -1) <= failed
-        for node in child.walk()
-    )
+    actions = [n for n in child.walk() if n.kind == ACTION]
+    started = any(began <= state.activation.get(a.uid, -1) <= failed for a in actions)
+    broke = any(began <= state.last_failure.get(a.uid, -1) <= failed for a in actions)
+    return decided_by_guard(child, failed_leaf(child, state, began), started, broke)
 
 
 def _clause_node(leaf: Node, handler: Node) -> Node | None:

@@ -71,12 +71,16 @@ def reason_node(node: Node) -> Node | None:
     return None
 
 
-def why(node: Node) -> str:
-    """Q2 (Algorithm 2): ``I {d(n)} in order to {p}.``"""
+def why(node: Node, tree: Tree | None = None) -> str:
+    """Q2 (Algorithm 2): ``I {d(n)} in order to {p}.``; with nothing named above the node,
+    in order to the goal (the main tree's name), and the root itself is the goal."""
     reason = reason_node(node)
-    if reason is None:
+    if reason is not None:
+        return f"I {words(node)} in order to {words(reason)}."
+    goal_said = goal_words(tree) if tree is not None else None
+    if node.parent is None or goal_said is None or goal_said == words(node):
         return f"I {words(node)} because it is my goal."
-    return f"I {words(node)} in order to {words(reason)}."
+    return f"I {words(node)} in order to {goal_said}."
 
 
 def _root_of(node: Node) -> Node:
@@ -147,7 +151,8 @@ def goal(tree: Tree) -> str:
 def steps(target: Node) -> list[Node]:
     """Algorithm 5: depth-first below ``target``, the first named, non-decorator nodes
     whose words differ from the target's; their branches are not explored further. An
-    execution node is its own one step."""
+    execution node is its own one step; where nothing below is named, the steps are the
+    execution nodes below, in tree order."""
     if target.is_execution:
         return [target]
     found: list[Node] = []
@@ -158,7 +163,7 @@ def steps(target: Node) -> list[Node]:
             found.append(node)
         else:
             stack.extend(reversed(node.children))
-    return found
+    return found or [n for n in target.walk() if n.is_execution]
 
 
 def how(target: Node | None, level: str, tree: Tree | None = None) -> str:

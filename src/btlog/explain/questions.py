@@ -190,7 +190,7 @@ def answer(
     if intent == "doing":
         text = per_node(nodes, doing, "I am not doing anything.")
     elif intent == "why":
-        text = per_node(nodes, why, "I am not doing anything.")
+        text = per_node(nodes, lambda n: why(n, tree), "I am not doing anything.")
     elif intent == "subgoal":
         text = per_node(nodes, subgoal, "Sorry. I don't have a subgoal.")
     elif intent == "goal":

@@ -315,7 +315,7 @@ class _Failures:
                 if examined > MAX_EXAMINED:
                     self.examined_all = False
                     return
-                if by_guard(self.tree.node(failed.uid), failed, self.history):
+                if by_guard(self.tree, self.tree.node(failed.uid), failed, self.history):
                     self.guards += 1
                 else:
                     yield failed
