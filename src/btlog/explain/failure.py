@@ -34,7 +34,7 @@ within the child re-checks on every tick. A condition checked once after actions
 plain Sequence (the paper's "check if grasped") is a real failure. A handler whose child
 failed by guard has nothing to say; the walk goes on up, to a handler that holds a real
 failure (or to "Nothing went wrong."). The same test marks guard failures in the run's
-story and the fleet's causes (``btlog.explain.causes.by_design``). """
+story and the fleet's causes (``btlog.explain.causes.by_design``)."""
 
 from __future__ import annotations
 
