@@ -18,11 +18,10 @@ import os
 import struct
 from collections.abc import Iterator
 from dataclasses import dataclass
-from datetime import UTC, datetime
 from pathlib import Path
 
 from btlog.sources import FILELOG_MAGIC
-from btlog.sources.btcpp_records import RECORD_SIZE, decode_records
+from btlog.sources.btcpp_records import RECORD_SIZE, decode_records, record_at
 from btlog.sources.btcpp_tree import tree_from_file, tree_from_log_xml
 from btlog.sources.builder import (
     DEFAULT_TICK_GAP_NS,
@@ -30,6 +29,7 @@ from btlog.sources.builder import (
     RecordingBuilder,
     Source,
     SourceError,
+    wall_start,
 )
 from btlog.status import Status
 from btlog.tree.model import Tree
@@ -42,7 +42,8 @@ _HEAD = len(FILELOG_MAGIC) + 1
 
 @dataclass
 class FileLog:
-    """A parsed FileLogger2 file: version, tree XML, start time (µs), raw records."""
+    """A parsed FileLogger2 file: version, tree XML, start time (µs) and where it lies,
+    the raw records and the byte they start at."""
 
     file: str
     version: int
@@ -50,13 +51,15 @@ class FileLog:
     start_us: int
     records: bytes
     trailing: int
+    start_offset: int = 0
+    records_offset: int = 0
 
     def __len__(self) -> int:
         return len(self.records) // RECORD_SIZE
 
     def transitions(self) -> Iterator[tuple[int, int, Status]]:
         """``(µs since start, uid, status)`` for each record, in file order."""
-        return decode_records(self.records, self.file)
+        return decode_records(self.records, self.file, self.records_offset)
 
 
 def read_filelog(path: str | os.PathLike) -> FileLog:
@@ -81,7 +84,8 @@ def read_filelog(path: str | os.PathLike) -> FileLog:
     (start_us,) = struct.unpack_from("<q", data, body + size)
     records = data[body + size + 8 :]
     trailing = len(records) % RECORD_SIZE
-    return FileLog(file, version, xml, start_us, records[: len(records) - trailing], trailing)
+    kept = records[: len(records) - trailing]
+    return FileLog(file, version, xml, start_us, kept, trailing, body + size, body + size + 8)
 
 
 def import_filelog(
@@ -94,7 +98,8 @@ def import_filelog(
     """Import a FileLogger2 file into the recording ``output``."""
     log = read_filelog(path)
     tree = log_tree(log, tree_file, registry)
-    started = datetime.fromtimestamp(log.start_us / 1e6, UTC)
+    warnings: list[str] = []
+    started = wall_start(log.start_us, f"{log.file} (byte {log.start_offset})", warnings)
     source = Source.of_file(FORMAT, path, version=log.version, records=len(log))
     builder = RecordingBuilder(
         output,
@@ -104,9 +109,13 @@ def import_filelog(
         attachments=[("btcpp-tree.xml", log.xml)],
         tick_gap_ns=tick_gap_ns,
     )
+    builder.warnings.extend(warnings)
     try:
-        for t_us, uid, status in log.transitions():
-            builder.transition(t_us * 1000, uid, status)
+        for number, (t_us, uid, status) in enumerate(log.transitions()):
+            try:
+                builder.transition(t_us * 1000, uid, status)
+            except SourceError as error:
+                raise SourceError(f"{error} ({record_at(number, log.records_offset)})") from None
     except BaseException:
         builder.close()
         Path(output).unlink(missing_ok=True)

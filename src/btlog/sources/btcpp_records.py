@@ -25,18 +25,24 @@ def status_of(code: object, where: str) -> Status:
     raise SourceError(f"{where}: status {code!r} is not 0-4")
 
 
-def decode_records(data: bytes, where: str) -> Iterator[tuple[int, int, Status]]:
-    """``(µs since start, uid, status)`` of each whole record in ``data``."""
+def decode_records(data: bytes, where: str, base: int = 0) -> Iterator[tuple[int, int, Status]]:
+    """``(µs since start, uid, status)`` of each whole record in ``data``; errors name
+    the record and its byte (``base``: where ``data`` starts in its file)."""
     statuses, count, from_bytes = _STATUSES, len(_STATUSES), int.from_bytes
     for offset in range(0, len(data) - len(data) % RECORD_SIZE, RECORD_SIZE):
         code = data[offset + 8]
         if code >= count:
-            status_of(code, f"{where}: record {offset // RECORD_SIZE}")  # raises
+            status_of(code, f"{where}: {record_at(offset // RECORD_SIZE, base)}")  # raises
         yield (
             from_bytes(data[offset : offset + 6], "little"),
             from_bytes(data[offset + 6 : offset + 8], "little"),
             statuses[code],
         )
+
+
+def record_at(number: int, base: int = 0) -> str:
+    """How errors name record ``number`` of records starting at byte ``base``."""
+    return f"record {number} (byte {base + number * RECORD_SIZE})"
 
 
 def encode_record(t_us: int, uid: int, status: Status) -> bytes:

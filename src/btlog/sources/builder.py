@@ -29,7 +29,7 @@ import hashlib
 import os
 from collections.abc import Iterable, Mapping
 from dataclasses import dataclass, field
-from datetime import UTC, datetime
+from datetime import UTC, datetime, timedelta
 from pathlib import Path
 from typing import Any
 
@@ -40,6 +40,10 @@ from btlog.tree.model import Tree
 
 #: A gap between two transitions longer than this starts a new tick (rule 3).
 DEFAULT_TICK_GAP_NS = 1_000_000
+#: The latest wall time a recording holds, in ns since the Unix epoch: its times are
+#: signed 64-bit nanoseconds (2262-04-11), and an MCAP log time cannot precede 1970.
+LATEST_NS = (1 << 63) - 1
+_EPOCH = datetime(1970, 1, 1, tzinfo=UTC)
 
 
 class SourceError(ValueError):
@@ -84,6 +88,20 @@ class BuildResult:
     warnings: list[str]
 
 
+def wall_start(start_us: int, where: str, warnings: list[str]) -> datetime:
+    """The start of a run a log gives in µs since the Unix epoch; when it is no time a
+    recording can hold (before 1970, after 2262: a logger's clock never set, a damaged
+    header), the epoch, with a warning naming ``where`` and the value."""
+    if 0 <= start_us <= LATEST_NS // 1000:
+        return _EPOCH + timedelta(microseconds=start_us)
+    warnings.append(
+        f"{where}: start time {start_us} µs since 1970 is not a time from 1970 to 2262; "
+        "the run is recorded as starting at 1970-01-01T00:00:00Z (its times since the start "
+        "are as logged)"
+    )
+    return _EPOCH
+
+
 class RecordingBuilder:
     """Writes the MCAP recording ``output`` of ``tree`` from a stream of transitions.
 
@@ -91,8 +109,9 @@ class RecordingBuilder:
     the run's start; ``close`` finishes the file and returns a ``BuildResult``. The
     file is crash-safe as ``btlog run``'s (flushed at least every ``flush_interval``
     seconds of wall time, on tick boundaries or ``flush``). ``subscribers`` (e.g. a live
-    ``StateProjection``) receive every event and tick after the recorder. Unknown uids and statuses
-    raise ``SourceError``; times going backwards are clamped, with a warning.
+    ``StateProjection``) receive every event and tick after the recorder. Unknown uids and
+    statuses, and times past 2262 (``LATEST_NS``), raise ``SourceError``; times going
+    backwards are clamped, with a warning.
     """
 
     def __init__(
@@ -136,6 +155,8 @@ class RecordingBuilder:
             **(metadata or {}),
         }
         self.recorder = Recorder(output, tree, record, attachments, flush_interval=flush_interval)
+        #: the latest time since the start a recording of this start can hold
+        self._latest_t = LATEST_NS - self.recorder.start_ns
         self._subscribers: list[Subscriber] = [self.recorder, *subscribers]
         #: transitions not yet numbered, while the recorder is the only subscriber (as
         #: the executor batches them: ``btlog.events.StatusBatch``)
@@ -259,6 +280,12 @@ class RecordingBuilder:
 
     # -- ticks -------------------------------------------------------------------------
     def _clamp(self, t_ns: int) -> int:
+        if t_ns > self._latest_t:
+            raise SourceError(
+                f"{self.source.file}: an event {t_ns / 1e9:.6f} s after the start "
+                f"(#{self._transitions + self._writes + 1}) lies past 2262, "
+                "the latest time a recording holds"
+            )
         if t_ns < self._last_t:
             self._clamped += 1
             return self._last_t
