@@ -26,12 +26,13 @@ from btlog.sources.nav2_rosbag import import_bag
 from btlog.status import RUNNING
 from tests.cli_support import ROOT, assert_bad_input, btlog
 from tests.oracle.random_trees import generate
+from tests.rosbag2_support import HUMBLE, NAV2_LOG, Message, write_sqlite_bag
 
 NAV2 = ROOT / "trees" / "nav2"
 TREE = NAV2 / "navigate_to_pose.xml"
 FAILS_ONCE = NAV2 / "follow-path-fails-once.yaml"
 #: BehaviorTreeStatusChange before Nav2 added the uid field (Humble, Iron).
-NO_UID_MSGDEF = LOG_MSGDEF.replace("uint16 uid\n", "")
+NO_UID_MSGDEF = HUMBLE
 
 
 def record(tmp_path: Path, name: str, tree: Path = TREE, **outcomes: object) -> Recording:
@@ -40,42 +41,47 @@ def record(tmp_path: Path, name: str, tree: Path = TREE, **outcomes: object) -> 
     return open_recording(execute(config, tmp_path / f"{name}.mcap").path)
 
 
+def nav2_messages(runs: list[Recording], uids: bool = True) -> list[Message]:
+    """What Nav2 would have published for these runs, one goal each, 100 s apart, as
+    ``(topic, type, log time, message)``."""
+    buffer: list[dict] = []
+    messages: list[Message] = []
+    for index, run in enumerate(runs):
+        start = start_time_ns(run.metadata["started_at"])
+        offset = index * 100_000_000_000
+        names = {n.uid: n.description for n in run.tree}  # BT.CPP's name()
+        by_tick: dict[int, list] = {}
+        for change in run.transitions:
+            by_tick.setdefault(change.tick, []).append(change)
+        for tick in run.ticks:
+            for change in by_tick.get(tick.tick, []):
+                t = start + offset + change.t_ns
+                entry = {
+                    "timestamp": {"sec": t // 10**9, "nanosec": t % 10**9},
+                    "node_name": names[change.uid],
+                    "previous_status": change.prev.name,
+                    "current_status": change.status.name,
+                }
+                if uids:
+                    entry["uid"] = change.uid
+                buffer.append(entry)
+            if tick.root_status is RUNNING and buffer:
+                sent = start + offset + tick.end_ns
+                message = {"timestamp": {"sec": sent // 10**9, "nanosec": 0}, "event_log": buffer}
+                messages.append(("/behavior_tree_log", NAV2_LOG, sent, message))
+                buffer = []
+    return messages
+
+
 def write_nav2_bag(
     path: Path, runs: list[Recording], uids: bool = True, chunk_size: int = 1 << 20
 ) -> None:
-    """What Nav2 would have published for these runs, one goal each, 100 s apart."""
-    buffer: list[dict] = []
+    """The MCAP file ``path`` of what Nav2 would have published for these runs."""
     with open(path, "wb") as stream:
         writer = Writer(stream, chunk_size=chunk_size)
-        schema = writer.register_msgdef(
-            "nav2_msgs/msg/BehaviorTreeLog", LOG_MSGDEF if uids else NO_UID_MSGDEF
-        )
-        for index, run in enumerate(runs):
-            start = start_time_ns(run.metadata["started_at"])
-            offset = index * 100_000_000_000
-            names = {n.uid: n.description for n in run.tree}  # BT.CPP's name()
-            by_tick: dict[int, list] = {}
-            for change in run.transitions:
-                by_tick.setdefault(change.tick, []).append(change)
-            for tick in run.ticks:
-                for change in by_tick.get(tick.tick, []):
-                    t = start + offset + change.t_ns
-                    entry = {
-                        "timestamp": {"sec": t // 10**9, "nanosec": t % 10**9},
-                        "node_name": names[change.uid],
-                        "previous_status": change.prev.name,
-                        "current_status": change.status.name,
-                    }
-                    if uids:
-                        entry["uid"] = change.uid
-                    buffer.append(entry)
-                if tick.root_status is RUNNING and buffer:
-                    sent = start + offset + tick.end_ns
-                    message = {"timestamp": {"sec": sent // 10**9, "nanosec": 0}}
-                    writer.write_message(
-                        "/behavior_tree_log", schema, {**message, "event_log": buffer}, sent
-                    )
-                    buffer = []
+        schema = writer.register_msgdef(NAV2_LOG, LOG_MSGDEF if uids else NO_UID_MSGDEF)
+        for topic, _type, sent, message in nav2_messages(runs, uids):
+            writer.write_message(topic, schema, message, sent)
         writer.finish()
 
 
@@ -180,17 +186,20 @@ def test_a_nav2_bag_imports_one_recording_per_goal(tmp_path: Path) -> None:
     assert "Note: the bag ends before this goal's result" in explained.stdout
 
 
+NAMED = (
+    '<root BTCPP_format="4"><BehaviorTree ID="Nav">'
+    '<RecoveryNode name="navigate" number_of_retries="2">'
+    '<PipelineSequence name="plan and follow"><RateController hz="2">'
+    '<Action ID="ComputePathToPose" name="plan"/></RateController>'
+    '<Action ID="FollowPath" name="follow"/></PipelineSequence>'
+    '<Action ID="ClearEntireCostmap" name="clear"/></RecoveryNode>'
+    "</BehaviorTree></root>"
+)
+
+
 def test_goal_option_and_name_matching_without_uids(tmp_path: Path) -> None:
     tree = tmp_path / "named.xml"
-    tree.write_text(
-        '<root BTCPP_format="4"><BehaviorTree ID="Nav">'
-        '<RecoveryNode name="navigate" number_of_retries="2">'
-        '<PipelineSequence name="plan and follow"><RateController hz="2">'
-        '<Action ID="ComputePathToPose" name="plan"/></RateController>'
-        '<Action ID="FollowPath" name="follow"/></PipelineSequence>'
-        '<Action ID="ClearEntireCostmap" name="clear"/></RecoveryNode>'
-        "</BehaviorTree></root>"
-    )
+    tree.write_text(NAMED)
     outcomes = {"nodes": {"follow": [{"status": "FAILURE", "duration": 1}, "SUCCESS"]}}
     runs = [record(tmp_path, f"r{i}", tree, outcomes=outcomes) for i in range(3)]
     bag = tmp_path / "humble.mcap"
@@ -208,6 +217,26 @@ def test_goal_option_and_name_matching_without_uids(tmp_path: Path) -> None:
         "--goal 4",
         "3 goals",
     )
+
+
+def test_a_humble_sqlite_bag_imports_as_a_folder_or_a_db3(tmp_path: Path) -> None:
+    """ROS 2 Humble's default storage: a folder with metadata.yaml and a .db3 holding no
+    message definitions; the .db3 alone is not taken for a BT.CPP SqliteLogger file."""
+    tree = tmp_path / "named.xml"
+    tree.write_text(NAMED)
+    outcomes = {"nodes": {"follow": [{"status": "FAILURE", "duration": 1}, "SUCCESS"]}}
+    runs = [record(tmp_path, f"r{i}", tree, outcomes=outcomes) for i in range(2)]
+    (db3,) = write_sqlite_bag(tmp_path / "bag", nav2_messages(runs, uids=False), {NAV2_LOG: HUMBLE})
+    for bag in (tmp_path / "bag", db3):
+        out = tmp_path / f"{bag.name}.mcap"
+        result = btlog("import", str(bag), "--tree", str(tree), "-o", str(out))
+        assert result.returncode == 0, result.stderr
+        first = open_recording(tmp_path / f"{bag.name}-goal1.mcap")
+        assert transitions(first) == transitions(runs[0])
+        source = first.metadata["source"]
+        source = json.loads(source) if isinstance(source, str) else source
+        assert source["definition"] == "eloquent-foxy-galactic-humble-iron"
+        assert source["matched_by"] == "name"
 
 
 def test_bad_bags_exit_2_with_one_line(tmp_path: Path) -> None:

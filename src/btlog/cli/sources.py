@@ -19,10 +19,13 @@ def add_parsers(commands: argparse._SubParsersAction) -> None:
     imp = commands.add_parser(
         "import",
         help="import a BT.CPP log (FileLogger2 .btlog, SqliteLogger .db3/.btdb) or a Nav2 bag",
-        description="Turn a BehaviorTree.CPP log, or a Nav2 rosbag2 MCAP with "
-        "/behavior_tree_log, into btlog recordings (format from content).",
+        description="Turn a BehaviorTree.CPP log, or a Nav2 rosbag2 bag (MCAP or SQLite, "
+        "a folder or one file) with /behavior_tree_log, into btlog recordings (format from "
+        "content).",
     )
-    imp.add_argument("file", metavar="FILE", help=".btlog, .db3, .btdb or rosbag2 .mcap file")
+    imp.add_argument(
+        "file", metavar="FILE", help=".btlog, .db3, .btdb file, or a rosbag2 folder/.mcap/.db3"
+    )
     imp.add_argument("-o", "--output", metavar="OUT", help="recording to write (FILE.mcap)")
     imp.add_argument("--tree", metavar="XML", help="the tree file (checked against the log's)")
     imp.add_argument("--session", metavar="N", type=int, help="SQLite: only this session")
@@ -127,9 +130,9 @@ def import_(args: Namespace) -> int:
     default = Path(args.output) if args.output else Path(Path(args.file).name).with_suffix(".mcap")
     if args.output:
         refuse_overwrite(args.output, [args.file, args.tree])
-    if args.goal is not None and kind != "rosbag2-mcap":
+    if args.goal is not None and kind != "rosbag2":
         raise ValueError(f"{args.file}: --goal applies to Nav2 bags only")
-    if kind == "rosbag2-mcap":
+    if kind == "rosbag2":
         from btlog.sources.nav2_rosbag import import_bag
 
         if args.session is not None:

@@ -25,19 +25,11 @@ from btlog.record.recorder import start_time_ns
 from btlog.sinks.btcpp_filelog import tree_xml
 from btlog.sources.builder import SourceError
 from btlog.sources.nav2_rosbag import LOG_TOPIC, LOG_TYPE, XML_TOPIC, XML_TYPE
+from btlog.sources.rosbag2 import shipped_definition
 
-_SEPARATOR = "\n" + "=" * 80 + "\n"
-#: ``nav2_msgs/msg/BehaviorTreeLog`` and its dependencies, as rosbag2 stores them.
-LOG_MSGDEF = _SEPARATOR.join(
-    [
-        "builtin_interfaces/Time timestamp\nBehaviorTreeStatusChange[] event_log\n",
-        "MSG: nav2_msgs/BehaviorTreeStatusChange\n"
-        "builtin_interfaces/Time timestamp\nstring node_name\nuint16 uid\n"
-        "string previous_status\nstring current_status\n",
-        "MSG: builtin_interfaces/Time\nint32 sec\nuint32 nanosec\n",
-    ]
-)
-XML_MSGDEF = "string data\n"
+#: ``nav2_msgs/msg/BehaviorTreeLog`` with uids (Nav2 since Jazzy), as rosbag2 stores it.
+LOG_MSGDEF = shipped_definition(LOG_TYPE, "jazzy").text
+XML_MSGDEF = shipped_definition(XML_TYPE, "all").text
 _MAX_UID = 0xFFFF
 
 

@@ -8,8 +8,9 @@ small module of its own.
   with times, optional blackboard writes, and where it came from. BT.CPP's FileLogger2
   (``btcpp_filelog``) and SQLite logger (``btcpp_sqlite``) files are imported; a running
   BT.CPP process is recorded live through the Groot2 protocol (``groot2``).
-  ``btcpp_tree`` reads the tree XML BT.CPP writes for its loggers. Nav2's
-  ``/behavior_tree_log`` is imported from rosbag2 MCAP files (``nav2_rosbag``).
+  ``btcpp_tree`` reads the tree XML BT.CPP writes for its loggers. ``rosbag2`` reads
+  ROS 2 bags (MCAP or SQLite storage); Nav2's ``/behavior_tree_log`` is imported from
+  them (``nav2_rosbag``).
 - Sinks write a btlog recording in another tool's format (``btlog.sinks``):
   FileLogger2 for Groot2.
 
@@ -28,10 +29,13 @@ MCAP_MAGIC = b"\x89MCAP0\r\n"
 
 
 def detect(path: str | os.PathLike) -> str:
-    """``"btcpp-filelog2"``, ``"btcpp-sqlite"`` or ``"rosbag2-mcap"`` (an MCAP file or a
-    rosbag2 folder) from the file's first bytes."""
+    """The import format of ``path``: ``"rosbag2"`` (a bag folder, an MCAP file, a
+    SQLite file with rosbag2's tables, a ``.zstd`` storage file), ``"btcpp-filelog2"``
+    or ``"btcpp-sqlite"`` (any other SQLite file: ``btcpp_sqlite`` checks its tables)."""
+    from btlog.sources.rosbag2 import is_rosbag2_sqlite, storage_of
+
     if os.path.isdir(path):
-        return "rosbag2-mcap"
+        return "rosbag2"
     try:
         with open(path, "rb") as stream:
             head = stream.read(32)
@@ -40,11 +44,11 @@ def detect(path: str | os.PathLike) -> str:
     if head.startswith(FILELOG_MAGIC):
         return "btcpp-filelog2"
     if head.startswith(SQLITE_MAGIC):
-        return "btcpp-sqlite"
-    if head.startswith(MCAP_MAGIC):
-        return "rosbag2-mcap"
+        return "rosbag2" if is_rosbag2_sqlite(path) else "btcpp-sqlite"
+    if storage_of(path) is not None:
+        return "rosbag2"
     raise SourceError(
-        f"{os.fspath(path)}: not a BT.CPP log or a rosbag2 MCAP file (no 'BTCPP4-FileLogger2' "
+        f"{os.fspath(path)}: not a BT.CPP log or a rosbag2 bag (no 'BTCPP4-FileLogger2' "
         "or MCAP magic, not SQLite); "
         f"first bytes {head[:18]!r}"
     )

@@ -60,12 +60,20 @@ class Source:
     details: Mapping[str, Any] = field(default_factory=dict)
 
     @classmethod
-    def of_file(cls, format: str, path: str | os.PathLike, **details: Any) -> Source:
-        """A source read from the file ``path`` (its sha256 computed here)."""
+    def of_file(
+        cls,
+        format: str,
+        path: str | os.PathLike,
+        files: Iterable[str | os.PathLike] | None = None,
+        **details: Any,
+    ) -> Source:
+        """A source read from ``path``: a file, or a folder whose ``files`` (a bag's
+        splits) are read in that order; the sha256 of their bytes is computed here."""
         digest = hashlib.sha256()
-        with open(path, "rb") as stream:
-            for block in iter(lambda: stream.read(1 << 20), b""):
-                digest.update(block)
+        for file in [path] if files is None else files:
+            with open(file, "rb") as stream:
+                for block in iter(lambda: stream.read(1 << 20), b""):
+                    digest.update(block)
         return cls(format, os.fspath(path), digest.hexdigest(), details)
 
     def describe(self) -> dict[str, Any]:

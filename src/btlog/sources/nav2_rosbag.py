@@ -1,10 +1,13 @@
-"""Import Nav2 runs from a rosbag2 MCAP file, without ROS.
+"""Import Nav2 runs from a rosbag2 bag (MCAP or SQLite storage), without ROS.
 
 Nav2's BT navigators publish ``/behavior_tree_log`` (``nav2_msgs/msg/BehaviorTreeLog``,
 CDR): once per tick of the BT loop, the status changes of that tick, each with its
 (wall-clock) time, node name, node uid (BT.CPP's creation order, the one btlog uses;
 bags from Nav2 versions before the field was added have none) and previous and current
-status. ``mcap-ros2-support`` decodes them from the schema stored in the bag.
+status. ``btlog.sources.rosbag2`` reads the bag and decodes them: with the definition
+stored in the bag (MCAP; SQLite since Jazzy), else with the definitions of each Nav2
+release btlog ships (Humble's SQLite bags hold none), the one that reads the messages
+exactly.
 
 The bag holds no tree, so the tree comes from ``--tree`` (or from the tree XML topic a
 ``btlog export --to nav2`` file carries). Log entries are matched to its nodes by uid,
@@ -20,16 +23,10 @@ A goal whose root never completes is imported as it is, with the recording's met
 from __future__ import annotations
 
 import os
-import struct
 from collections.abc import Iterator
 from dataclasses import dataclass, field
 from datetime import UTC, datetime
 from pathlib import Path
-from typing import Any, BinaryIO
-
-from mcap.exceptions import McapError
-from mcap.reader import McapReader, NonSeekingReader, make_reader
-from mcap_ros2.decoder import DecoderFactory
 
 from btlog.sources.btcpp_tree import tree_from_file, tree_from_log_xml
 from btlog.sources.builder import (
@@ -39,6 +36,7 @@ from btlog.sources.builder import (
     Source,
     SourceError,
 )
+from btlog.sources.rosbag2 import open_bag
 from btlog.status import FAILURE, IDLE, SUCCESS, Status
 from btlog.tree.loader import TreeError, load_tree
 from btlog.tree.model import Tree
@@ -78,6 +76,10 @@ class BagLog:
     messages: int
     tree_xml: bytes | None = None
     warnings: list[str] = field(default_factory=list)
+    #: where the message definition came from: "bag", or the Nav2 releases of btlog's
+    layout: str = ""
+    #: the bag's storage files, in order
+    files: list[str] = field(default_factory=list)
 
 
 @dataclass
@@ -87,17 +89,6 @@ class Goal:
     index: int
     entries: list[tuple[LogEntry, int]] = field(default_factory=list)
     complete: bool = False
-
-
-def bag_file(path: str | os.PathLike) -> Path:
-    """The MCAP file of a bag: the file itself, or the one ``.mcap`` in a bag folder."""
-    path = Path(path)
-    if not path.is_dir():
-        return path
-    files = sorted(path.glob("*.mcap"))
-    if len(files) != 1:
-        raise SourceError(f"{path}: a rosbag2 folder with {len(files)} .mcap files (need one)")
-    return files[0]
 
 
 def _status(text: str, where: str) -> Status:
@@ -112,86 +103,33 @@ def _stamp_ns(stamp: object) -> int:
 
 
 def read_bag(path: str | os.PathLike) -> BagLog:
-    """Read and decode ``/behavior_tree_log`` (and the tree XML topic, if any). A bag
-    cut short (no summary: the recorder was killed) is read up to its last whole
-    record, with a warning."""
-    file = bag_file(path)
-    log = BagLog(os.fspath(file), [], 0)
-    try:
-        with open(file, "rb") as stream:
-            _read(stream, log)
-    except OSError as error:
-        raise SourceError(f"{log.file}: cannot read the bag: {error.strerror}") from None
+    """Read and decode ``/behavior_tree_log`` (and the tree XML topic, if any) of a bag in
+    MCAP or SQLite storage (``btlog.sources.rosbag2``); what the bag's damage cost is
+    in the warnings."""
+    with open_bag(path) as bag:
+        log = BagLog(bag.path, [], 0)
+        topic = bag.topics.get(LOG_TOPIC)
+        if topic is None:
+            listed = ", ".join(sorted(bag.topics)) or "none"
+            raise SourceError(f"{bag.path}: no {LOG_TOPIC} topic (topics: {listed})")
+        if topic.type != LOG_TYPE or topic.serialization_format != "cdr":
+            raise SourceError(
+                f"{bag.path}: {LOG_TOPIC} has type {topic.type or '(none)'!r} "
+                f"({topic.serialization_format}); expected {LOG_TYPE} (cdr)"
+            )
+        for message in bag.messages({LOG_TOPIC, XML_TOPIC}):
+            if message.topic == XML_TOPIC:
+                if message.type == XML_TYPE:
+                    log.tree_xml = str(getattr(message.decoded, "data", "")).encode()
+                continue
+            log.messages += 1
+            log.entries.extend(_entries(message.decoded, f"{bag.path}: message {log.messages}"))
+        log.warnings.extend(bag.warnings)
+        log.layout = bag.used[LOG_TOPIC].origin if LOG_TOPIC in bag.used else ""
+        log.files = list(bag.files)
     if not log.entries:
         raise SourceError(f"{log.file}: {LOG_TOPIC} holds no status changes")
     return log
-
-
-def _read(stream: BinaryIO, log: BagLog) -> None:
-    reader: McapReader = make_reader(stream)
-    try:
-        summary = reader.get_summary()
-    except (McapError, ValueError, EOFError, struct.error):
-        summary = None
-    if summary is None:  # no summary: read the records in order, up to any cut
-        stream.seek(0)
-        reader = NonSeekingReader(stream)
-    if summary is not None:
-        channels = list(summary.channels.values())
-        _check_channel(
-            next((c for c in channels if c.topic == LOG_TOPIC), None),
-            summary.schemas,
-            {c.topic for c in channels},
-            log.file,
-        )
-    decoders = DecoderFactory()
-    topics: set[str] = set()
-    checked = False
-    try:
-        for schema, channel, message in reader.iter_messages(log_time_order=False):
-            topics.add(channel.topic)
-            if channel.topic not in (LOG_TOPIC, XML_TOPIC):
-                continue
-            if channel.topic == LOG_TOPIC and not checked:
-                schemas = {} if schema is None else {schema.id: schema}
-                _check_channel(channel, schemas, topics, log.file)
-                checked = True
-            decode = decoders.decoder_for(channel.message_encoding, schema)
-            if decode is None:
-                continue
-            decoded = decode(message.data)
-            if channel.topic == XML_TOPIC:
-                log.tree_xml = str(getattr(decoded, "data", "")).encode()
-                continue
-            log.messages += 1
-            log.entries.extend(_entries(decoded, f"{log.file}: message {log.messages}"))
-    except (McapError, ValueError, KeyError, EOFError, struct.error) as error:
-        if isinstance(error, SourceError):
-            raise
-        if summary is not None or not log.entries:
-            reason = str(error) or type(error).__name__
-            raise SourceError(f"{log.file}: not a readable rosbag2 MCAP file ({reason})") from None
-        log.warnings.append(
-            f"{log.file}: the bag ends inside a record (a recording cut short?); "
-            f"read the {log.messages} whole {LOG_TOPIC} messages before the cut"
-        )
-    if not checked:
-        _check_channel(None, {}, topics, log.file)
-
-
-def _check_channel(channel: Any, schemas: dict, topics: set[str], where: str) -> None:
-    """Refuse a bag without the log topic, or with the topic of another type."""
-    if channel is None:
-        listed = ", ".join(sorted(topics)) or "none"
-        raise SourceError(f"{where}: no {LOG_TOPIC} topic (topics: {listed})")
-    schema = schemas.get(channel.schema_id)
-    name = schema.name if schema is not None else "(no schema)"
-    encoding = schema.encoding if schema is not None else ""
-    if name != LOG_TYPE or encoding != "ros2msg" or channel.message_encoding != "cdr":
-        raise SourceError(
-            f"{where}: {LOG_TOPIC} has type {name!r} ({encoding or '?'}/"
-            f"{channel.message_encoding}); expected {LOG_TYPE} (ros2msg/cdr)"
-        )
 
 
 def _entries(decoded: object, where: str) -> Iterator[LogEntry]:
@@ -311,8 +249,10 @@ def import_bag(
         source = Source.of_file(
             FORMAT,
             log.file,
+            log.files,
             topic=LOG_TOPIC,
             messages=log.messages,
+            definition=log.layout,
             matched_by=matched_by,
             goal=item.index,
             goals=len(goals),
