@@ -22,8 +22,9 @@ MAX_FILE_BYTES = 8 * 1024 * 1024
 MAX_NODES = 200_000
 #: Depth of a tree once every SubTree is expanded (the root has depth 0).
 MAX_DEPTH = 200
-#: Attributes on one XML element (lxml reads them in quadratic time).
+#: Attributes on one XML element, and nesting of XML elements.
 MAX_ATTRIBUTES = 1_000
+MAX_XML_NESTING = 256
 #: Characters of one string built by a script (``..``), and of one script's code.
 MAX_SCRIPT_STRING = 16 * 1024 * 1024
 MAX_SCRIPT_CODE = 64 * 1024

@@ -14,8 +14,6 @@ from __future__ import annotations
 
 from dataclasses import dataclass, replace
 
-from lxml import etree
-
 from btlog import limits
 from btlog.tree.descriptions import DESCRIPTION
 from btlog.tree.documents import Definition, Documents
@@ -39,6 +37,7 @@ from btlog.tree.registry import (
     leaf_kind,
 )
 from btlog.tree.xml_source import TreeError
+from btlog.tree.xml_syntax import XmlElement
 
 GENERIC_TAGS = {
     "Action": ACTION,
@@ -107,11 +106,11 @@ class TreeBuilder:
         self.uid += 1
         return self.uid
 
-    def _build(self, element: etree._Element, context: BuildContext) -> Node:
+    def _build(self, element: XmlElement, context: BuildContext) -> Node:
         file, line, tag = context.file, element.sourceline or 0, element.tag
         if tag in SUBTREE_TAGS:
             return self._build_subtree(element, context)
-        children = [c for c in element if isinstance(c.tag, str)]
+        children = element.children
         node_type, strict = self._node_type(element, len(children), file, line)
         uid = self._next_uid(file, line, context.depth)
         type_id = node_type.id
@@ -134,7 +133,7 @@ class TreeBuilder:
         return node
 
     def _node_type(
-        self, element: etree._Element, children: int, file: str, line: int
+        self, element: XmlElement, children: int, file: str, line: int
     ) -> tuple[NodeType, bool]:
         """The element's node type, and whether its ports are checked against it."""
         tag = element.tag
@@ -183,7 +182,7 @@ class TreeBuilder:
         return node_type, strict
 
     def _ports(
-        self, element: etree._Element, node_type: NodeType, strict: bool, file: str, line: int
+        self, element: XmlElement, node_type: NodeType, strict: bool, file: str, line: int
     ) -> tuple[dict[str, Port], dict[str, str]]:
         """Ports as written plus declared defaults; a known type's unknown port is an error
         (a type declared only by an empty model entry accepts any port)."""
@@ -209,12 +208,12 @@ class TreeBuilder:
             _check_script(ports[script_port].value, script_port, file, line)
         return ports, attributes
 
-    def _build_subtree(self, element: etree._Element, context: BuildContext) -> Node:
+    def _build_subtree(self, element: XmlElement, context: BuildContext) -> Node:
         file, line = context.file, element.sourceline or 0
         subtree_id = element.get("ID")
         if not subtree_id:
             raise TreeError("<SubTree> needs an ID attribute", file, line)
-        if [c for c in element if isinstance(c.tag, str)]:
+        if element.children:
             raise TreeError(f"<SubTree ID={subtree_id!r}> must not have children", file, line)
         if subtree_id not in self.documents.definitions:
             raise TreeError(f"subtree {subtree_id!r} is not defined", file, line)
@@ -262,7 +261,7 @@ class TreeBuilder:
         return node
 
     def _subtree_ports(
-        self, element: etree._Element, subtree_id: str, v3_plain: bool, file: str, line: int
+        self, element: XmlElement, subtree_id: str, v3_plain: bool, file: str, line: int
     ) -> tuple[dict[str, Port], dict[str, str]]:
         """A SubTree's remappings (v3: ``a="b"`` is the key ``{b}``) and attributes, with
         the defaults of the subtree's model."""
@@ -346,7 +345,7 @@ def _expanded_size(definitions: dict[str, Definition], main: str, cap: int) -> i
     own: dict[str, int] = {}
     calls: dict[str, list[str]] = {}
     for tree_id, definition in definitions.items():
-        elements = [e for e in definition.element.iter() if isinstance(e.tag, str)][1:]
+        elements = list(definition.element.iter())[1:]
         own[tree_id] = len(elements)
         calls[tree_id] = [
             e.get("ID", "")

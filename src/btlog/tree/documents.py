@@ -12,12 +12,11 @@ from __future__ import annotations
 from dataclasses import dataclass, field
 from pathlib import Path
 
-from lxml import etree
-
 from btlog import limits
 from btlog.tree.model import ACTION, CONDITION, CONTROL, DECORATOR, SUBTREE
 from btlog.tree.registry import NodeType, PortSpec, Registry
 from btlog.tree.xml_source import TreeError, parse_xml
+from btlog.tree.xml_syntax import XmlElement
 
 MAX_INCLUDE_DEPTH = 16
 MODEL_KINDS = {
@@ -39,12 +38,12 @@ MODEL_PORT_TAGS = {
 class Definition:
     """A ``<BehaviorTree>`` element and the file it is in."""
 
-    element: etree._Element
+    element: XmlElement
     file: str
 
-    def root_element(self) -> etree._Element:
+    def root_element(self) -> XmlElement:
         """The tree's one node element."""
-        return next(c for c in self.element if isinstance(c.tag, str))
+        return self.element.children[0]
 
 
 @dataclass
@@ -52,7 +51,7 @@ class Document:
     """One ``<root>`` file: its format (None when not given) and main tree."""
 
     file: str
-    root: etree._Element
+    root: XmlElement
     format: int | None
     main: str | None
 
@@ -82,7 +81,7 @@ class Documents:
         self.documents.append(
             Document(file, root, int(fmt) if fmt else None, root.get("main_tree_to_execute"))
         )
-        children = [c for c in root if isinstance(c.tag, str)]
+        children = root.children
         for element in children:
             if element.tag == "BehaviorTree":
                 self._define(element, file, len(children))
@@ -111,7 +110,7 @@ class Documents:
             raise TreeError(f"main tree {main!r} is not defined", file, line)
         return main
 
-    def _define(self, element: etree._Element, file: str, siblings: int) -> None:
+    def _define(self, element: XmlElement, file: str, siblings: int) -> None:
         tree_id = element.get("ID")
         if tree_id is None:
             if siblings > 1:
@@ -128,7 +127,7 @@ class Documents:
                 return  # another instance of a subtree, in BT.CPP-written XML
         if tree_id in self.definitions:
             raise TreeError(f"tree {tree_id!r} is defined twice", file, element.sourceline)
-        nodes = [c for c in element if isinstance(c.tag, str)]
+        nodes = element.children
         if len(nodes) != 1:
             raise TreeError(
                 f"<BehaviorTree ID={tree_id!r}> must have exactly one child, found {len(nodes)}",
@@ -138,7 +137,7 @@ class Documents:
         self.definitions[tree_id] = Definition(element, file)
 
     def _include(
-        self, element: etree._Element, file: str, folder: Path, depth: int, seen: tuple[str, ...]
+        self, element: XmlElement, file: str, folder: Path, depth: int, seen: tuple[str, ...]
     ) -> None:
         target = element.get("path")
         if not target:
@@ -164,12 +163,10 @@ class Documents:
             ) from None
         self.read(data, str(path), path.parent, depth + 1, seen)
 
-    def read_model(self, element: etree._Element, file: str) -> None:
+    def read_model(self, element: XmlElement, file: str) -> None:
         """Register the node types a ``<TreeNodesModel>`` declares (a type btlog implements
         keeps its implementation; a SubTree's model gives its ports)."""
         for entry in element:
-            if not isinstance(entry.tag, str):
-                continue
             kind = MODEL_KINDS.get(entry.tag)
             type_id = entry.get("ID")
             if kind is None or not type_id:
@@ -189,10 +186,10 @@ class Documents:
                 )
 
 
-def _model_ports(entry: etree._Element, type_id: str, file: str) -> dict[str, PortSpec]:
+def _model_ports(entry: XmlElement, type_id: str, file: str) -> dict[str, PortSpec]:
     ports = {}
     for port in entry:
-        if not isinstance(port.tag, str) or port.tag == "MetadataFields":
+        if port.tag == "MetadataFields":
             continue
         direction = MODEL_PORT_TAGS.get(port.tag)
         name = port.get("name")

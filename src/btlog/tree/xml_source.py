@@ -1,7 +1,8 @@
 """Untrusted XML in: bounded reading, safe parsing, and the one error of the tree loader.
 
-Entities are not resolved, DTDs and network access are refused, files are bounded in size
-(checked before reading) and elements in attributes; every error is a ``TreeError`` naming
+XML is read as BT.CPP's tinyxml2 reads it (``btlog.tree.xml_syntax``): no entity but XML's
+five is expanded, a DTD is refused, nothing is fetched; files are bounded in size (checked
+before reading), elements in nesting and attributes; every error is a ``TreeError`` naming
 the file, the line and what is wrong. The bounds are in ``btlog.limits``.
 """
 
@@ -9,9 +10,8 @@ from __future__ import annotations
 
 import os
 
-from lxml import etree
-
 from btlog import limits
+from btlog.tree.xml_syntax import XmlElement, XmlLimitError, XmlSyntaxError, parse
 
 
 class TreeError(ValueError):
@@ -23,42 +23,19 @@ class TreeError(ValueError):
         super().__init__(f"{where}: {message}" if where else message)
 
 
-def _parser() -> etree.XMLParser:
-    return etree.XMLParser(
-        resolve_entities=False,
-        no_network=True,
-        load_dtd=False,
-        dtd_validation=False,
-        huge_tree=False,
-        remove_comments=True,
-        remove_pis=True,
-    )
-
-
-def parse_xml(data: bytes, file: str) -> etree._Element:
-    """Parse untrusted XML bytes safely; a DTD or entity declaration is refused, and so
-    is a file over the size limit or an element with too many attributes."""
+def parse_xml(data: bytes, file: str) -> XmlElement:
+    """Parse untrusted XML bytes as BT.CPP does (tinyxml2's syntax, ``btlog.tree.xml_syntax``)
+    and safely: a DOCTYPE is refused, no entity but XML's five is expanded, and a file over
+    the size limit, nesting too deep or an element with too many attributes is refused."""
     limit = limits.current().max_file_bytes
     if len(data) > limit:
         raise TreeError(f"file is larger than {limit} bytes (--max-file-size)", file)
     try:
-        document = etree.fromstring(data, _parser()).getroottree()
-    except etree.XMLSyntaxError as error:
-        line = error.lineno if error.lineno else None
-        message = error.msg if hasattr(error, "msg") and error.msg else str(error)
-        raise TreeError(f"malformed XML: {message}", file, line) from None
-    if document.docinfo.doctype or document.docinfo.internalDTD is not None:
-        raise TreeError("DOCTYPE declarations are not allowed", file, 1)
-    root = document.getroot()
-    for element in root.iter():
-        # lxml reads an element's attribute values in quadratic time: bound their count.
-        if len(element.attrib) > limits.MAX_ATTRIBUTES:
-            raise TreeError(
-                f"an element has more than {limits.MAX_ATTRIBUTES} attributes",
-                file,
-                element.sourceline,
-            )
-    return root
+        return parse(data, limits.MAX_XML_NESTING, limits.MAX_ATTRIBUTES)
+    except XmlLimitError as error:
+        raise TreeError(error.problem, file, error.line) from None
+    except XmlSyntaxError as error:
+        raise TreeError(f"malformed XML: {error.problem}", file, error.line) from None
 
 
 def read_xml_file(source: str | os.PathLike) -> bytes:
