@@ -33,7 +33,7 @@ from collections.abc import Callable, Sequence
 from dataclasses import dataclass
 from typing import Any
 
-from hypothesis import HealthCheck, settings
+from hypothesis import HealthCheck, Phase, settings
 from hypothesis import strategies as st
 
 from btlog.errors import EXIT_BAD_INPUT, EXIT_OK
@@ -186,6 +186,7 @@ def fuzz(examples: int = 50, seconds: float = 10.0) -> Callable[[Callable], Call
             derandomize=True,
             database=None,
             deadline=None,
+            phases=(Phase.explicit, Phase.generate, Phase.shrink),  # no slow "explain"
             suppress_health_check=[
                 HealthCheck.too_slow,
                 HealthCheck.data_too_large,

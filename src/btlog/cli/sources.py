@@ -147,11 +147,9 @@ def import_(args: Namespace) -> int:
             raise ValueError(f"{args.file}: --session applies to SQLite logs only")
         results = [import_filelog(args.file, default, args.tree, registry, gap)]
     else:
-        from btlog.sources.btcpp_sqlite import import_sqlite, open_log, sessions
+        from btlog.sources.btcpp_sqlite import import_sqlite, session_ids
 
-        con = open_log(args.file)
-        ids = [s.session_id for s in sessions(con)]
-        con.close()
+        ids = session_ids(args.file)
         if args.session is not None:
             outputs = {args.session: default}
         elif len(ids) == 1:
