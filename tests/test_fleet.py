@@ -17,7 +17,7 @@ from btlog.fleet.lock import lake_lock
 from btlog.fleet.report import duckdb_report
 from btlog.replay.database import open_runs
 from btlog.runner import RunConfig, execute
-from tests.cli_support import btlog, btlog_command, btlog_environment
+from tests.cli_support import assert_bad_input, btlog, btlog_command, btlog_environment
 
 ROOT = Path(__file__).resolve().parent.parent
 KITTING = str(ROOT / "trees" / "kitting.xml")
@@ -214,6 +214,11 @@ def test_lake_sql_is_read_only(lake):
         assert done.returncode == 2, query
         assert "Traceback" not in done.stderr
     assert not (lake.parent / "leak.csv").exists()
+
+
+@pytest.mark.parametrize("query", ["", "  ", "-- a comment", ";"])
+def test_lake_sql_without_a_statement_is_bad_input(lake, query):
+    assert_bad_input(btlog("sql", "--lake", str(lake), query), "no statement")
 
 
 def test_reexport_replaces_a_runs_rows(lake, runs, tmp_path):

@@ -185,7 +185,7 @@ def test_an_undecodable_tree_is_refused_naming_the_session(kitting_rows, tmp_pat
     ],
 )
 def test_bad_values_in_a_row_are_refused_naming_the_timestamp(kitting_rows, tmp_path, row, words):
-    xml, rows = kitting_rows
+    xml, _rows = kitting_rows
     db = sqlite_log(tmp_path / "row.db3", xml, [(1, 1, 1, ""), row])
     assert_bad_input(_import(db, tmp_path / "row.mcap"), "row.db3 session 1", *words)
     assert not (tmp_path / "row.mcap").exists()

@@ -323,8 +323,11 @@ class RunDatabase:
 
 def only_queries(con: duckdb.DuckDBPyConnection, query: str) -> None:
     """ReplayError unless every statement of ``query`` is a query (SELECT, or EXPLAIN
-    without ANALYZE, which would run the statement)."""
-    for statement in con.extract_statements(query):
+    without ANALYZE, which would run the statement) and there is one at least."""
+    statements = con.extract_statements(query)
+    if not statements:
+        raise ReplayError(f"SQL error: no statement in {query!r}")
+    for statement in statements:
         kind = statement.type
         analyze = kind == duckdb.StatementType.EXPLAIN and re.match(
             r"\s*EXPLAIN\s+ANALY[SZ]E\b", statement.query, re.IGNORECASE
