@@ -20,6 +20,7 @@ from __future__ import annotations
 from typing import Any
 
 from btlog.executor.behavior import Behavior, NodeExecutionError
+from btlog.executor.blackboard import EntryWatch
 from btlog.status import FAILURE, IDLE, RUNNING, SKIPPED, SUCCESS, Status
 from btlog.tree.model import INOUT, INPUT, OUTPUT
 from btlog.tree.registry import PortSpec
@@ -193,6 +194,21 @@ class Sleep(StatefulAction):
         return SUCCESS if self.runtime.clock.now_ns() >= self.deadline else RUNNING
 
 
+class WasEntryUpdated(SyncAction):
+    """SUCCESS when the blackboard entry named by ``entry`` (``{key}`` or a plain key) was
+    written since this node last looked (every write counts), else FAILURE; a missing
+    entry is FAILURE."""
+
+    required_ports = ("entry",)
+
+    def __init__(self, *args: Any) -> None:
+        super().__init__(*args)
+        self.watch = EntryWatch(self.node.ports["entry"].value if self.has_port("entry") else "")
+
+    def tick(self) -> Status:
+        return SUCCESS if self.watch.updated(self.blackboard) else FAILURE
+
+
 ACTIONS: dict[str, type[Behavior]] = {
     "AlwaysSuccess": AlwaysSuccess,
     "AlwaysFailure": AlwaysFailure,
@@ -201,6 +217,7 @@ ACTIONS: dict[str, type[Behavior]] = {
     "SetBlackboard": SetBlackboard,
     "UnsetBlackboard": UnsetBlackboard,
     "Sleep": Sleep,
+    "WasEntryUpdated": WasEntryUpdated,
 }
 
 __all__ = [

@@ -35,6 +35,9 @@ class Blackboard:
         self.remap = remap or {}
         self.autoremap = autoremap
         self.entries: dict[str, Any] = {}
+        #: how many times each entry was written (BT.CPP's ``sequence_id``, which
+        #: WasEntryUpdated, SkipUnlessUpdated and WaitValueUpdate compare)
+        self.versions: dict[str, int] = {}
         self.on_write: WriteSink | None = None
         self.root: Blackboard = self if parent is None else parent.root
 
@@ -75,6 +78,7 @@ class Blackboard:
         """Write ``key`` (creating it where BT.CPP would) and report the write."""
         board, resolved, _ = self._resolve(key)
         board.entries[resolved] = value
+        board.versions[resolved] = board.versions.get(resolved, 0) + 1
         sink = self.root.on_write
         if sink is not None:
             sink(board.scope, resolved, value, writer)
@@ -85,9 +89,21 @@ class Blackboard:
         if not found:
             return
         del board.entries[resolved]
+        board.versions.pop(resolved, None)
         sink = self.root.on_write
         if sink is not None:
             sink(board.scope, resolved, UNSET, writer)
+
+    def preset(self, key: str, value: Any) -> None:
+        """Write ``key`` in this very scope before the run starts, unreported (the executor
+        reports it when the run begins): a SubTree's literal, an entry the host sets."""
+        self.entries[key] = value
+        self.versions[key] = self.versions.get(key, 0) + 1
+
+    def version(self, key: str) -> int | None:
+        """How many times ``key`` was written (None when it does not exist)."""
+        board, resolved, found = self._resolve(key)
+        return board.versions.get(resolved, 0) if found else None
 
     def view(self, writer: int | None) -> BoundBlackboard:
         """This blackboard as a node sees it (writes are reported with the node's uid)."""
@@ -152,3 +168,28 @@ class BoundBlackboard:
     def unset(self, key: str) -> None:
         """Remove ``key`` as this node."""
         self.board.unset(key, self.writer)
+
+    def version(self, key: str) -> int | None:
+        """How many times ``key`` was written (None when it does not exist)."""
+        return self.board.version(key)
+
+
+class EntryWatch:
+    """Was an entry written since the last look? BT.CPP's check of an entry's
+    ``sequence_id`` (WasEntryUpdated, SkipUnlessUpdated, WaitValueUpdate): ``raw`` names
+    the entry as ``{key}`` or as the plain key; every write counts, the same value too."""
+
+    __slots__ = ("key", "seen")
+
+    def __init__(self, raw: str) -> None:
+        key = blackboard_key(raw)
+        self.key = raw if key is None else key
+        self.seen = 0
+
+    def updated(self, board: BoundBlackboard) -> bool:
+        """True when the entry exists and was written since the last call that saw it."""
+        version = board.version(self.key)
+        if version is None:
+            return False
+        previous, self.seen = self.seen, version
+        return previous != version

@@ -72,8 +72,10 @@ class _InOrder(ControlBehavior):
         self.index = 0
 
     def _wakes_up(self, before: Status) -> bool:
-        """Whether a child that just completed ends this tick early (see SequenceWithMemory)."""
-        return False
+        """Whether a child that just completed (not decisively) ends this tick early: BT.CPP's
+        asynchronous controls signal a wake-up when it went from IDLE to done in this very
+        tick and more children remain (called only when ``may_wake_up``)."""
+        return self.wake_up_early(before, self.index < len(self.children))
 
     def _finish(self) -> Status:
         all_skipped = self.skipped == len(self.children)
@@ -107,17 +109,22 @@ class SequenceWithMemory(Sequence):
     the index, so the next tick retries the failed child; halting keeps the index too.
     A child succeeding from IDLE with more to go signals a wake-up and returns RUNNING."""
 
+    may_wake_up = True
+
     def _decided(self) -> None:
         for i in range(self.index, len(self.children)):
             self.halt_child(i)
 
-    may_wake_up = True
-
-    def _wakes_up(self, before: Status) -> bool:
-        return self.wake_up_early(before, self.index < len(self.children))
-
     def halt(self) -> None:
         ControlBehavior.halt(self)
+
+
+class AsyncSequence(Sequence):
+    """A Sequence that yields between children: a child succeeding from IDLE with more to
+    go signals a wake-up and returns RUNNING, so the executor ticks the root again at once
+    and a reactive parent can interrupt it (BT.CPP's ``SequenceNode(make_async=true)``)."""
+
+    may_wake_up = True
 
 
 class Fallback(_InOrder):
@@ -126,6 +133,71 @@ class Fallback(_InOrder):
 
     decisive = SUCCESS
     exhausted = FAILURE
+
+
+class AsyncFallback(Fallback):
+    """A Fallback that yields between children: a child failing from IDLE with more to go
+    signals a wake-up and returns RUNNING (BT.CPP's ``FallbackNode(make_async=true)``)."""
+
+    may_wake_up = True
+
+
+class TryCatch(ControlBehavior):
+    """Children but the last run as a Sequence (the *try* block); when one fails, every
+    child is reset and the last child (the *catch*) runs to completion, after which the
+    node fails whatever the catch returned. SKIPPED try children count as done (all
+    skipped: SKIPPED). With ``catch_on_halt`` true, halting the node while the try block
+    runs ticks the catch once (halting it if it is still RUNNING). BT.CPP 4.9."""
+
+    def __init__(self, *args: Any) -> None:
+        super().__init__(*args)
+        self.index = 0
+        self.skipped = 0
+        self.in_catch = False
+
+    def tick(self) -> Status:
+        children = self.children
+        tries = len(children) - 1
+        if self.status is IDLE:
+            self.skipped = 0
+            self.in_catch = False
+        self.set_status(RUNNING)
+        while not self.in_catch and self.index < tries:
+            result = children[self.index].execute_tick()
+            if result is RUNNING:
+                return RUNNING
+            if result is FAILURE:
+                self.reset_children()
+                self.index = 0
+                self.in_catch = True
+            else:
+                self.index += 1
+                self.skipped += result is SKIPPED
+        if self.in_catch:
+            if children[-1].execute_tick() is RUNNING:
+                return RUNNING
+            self.reset_children()
+            self.index = 0
+            self.in_catch = False
+            return FAILURE
+        all_skipped = self.skipped == tries
+        self.reset_children()
+        self.index = 0
+        self.skipped = 0
+        return SKIPPED if all_skipped else SUCCESS
+
+    def halt(self) -> None:
+        catch_on_halt = self.has_port("catch_on_halt") and self.get_input("catch_on_halt", "bool")
+        if catch_on_halt and not self.in_catch and self.status is not IDLE:
+            last = len(self.children) - 1
+            for index in range(last):
+                self.halt_child(index)
+            if self.children[last].execute_tick() is RUNNING:
+                self.halt_child(last)
+        self.index = 0
+        self.skipped = 0
+        self.in_catch = False
+        super().halt()
 
 
 class _Reactive(ControlBehavior):
@@ -421,8 +493,11 @@ def switch_class(cases: int) -> type[Switch]:
 
 CONTROLS: dict[str, type[Behavior]] = {
     "Sequence": Sequence,
+    "AsyncSequence": AsyncSequence,
     "SequenceWithMemory": SequenceWithMemory,
     "Fallback": Fallback,
+    "AsyncFallback": AsyncFallback,
+    "TryCatch": TryCatch,
     "ReactiveSequence": ReactiveSequence,
     "ReactiveFallback": ReactiveFallback,
     "Parallel": Parallel,

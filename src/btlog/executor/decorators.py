@@ -12,7 +12,9 @@ from __future__ import annotations
 from typing import Any
 
 from btlog.executor.behavior import Behavior, DecoratorBehavior, NodeExecutionError
+from btlog.executor.blackboard import EntryWatch
 from btlog.status import FAILURE, IDLE, RUNNING, SKIPPED, SUCCESS, Status
+from btlog.tree.ports import PortValueError, convert, split_queue
 from btlog.tree.script import compile_script, truthy
 
 
@@ -229,6 +231,127 @@ class Timeout(_Timed):
         return result
 
 
+class _QueueLoop(DecoratorBehavior):
+    """LoopInt, LoopDouble, LoopString, LoopBool: each time the child is to start, pop the
+    next element of ``queue`` into the output ``value`` and tick the child; the child's
+    FAILURE fails, its SUCCESS returns RUNNING (the next element is popped on the next
+    tick), and an empty queue returns ``if_empty`` (default SUCCESS) without ticking it.
+
+    A literal queue is ``1;2;3`` (elements of the loop's type, as BT.CPP splits them:
+    a trailing ``;`` adds nothing), converted when the node is built. A ``{key}`` queue
+    is read when the node starts from IDLE: a list is copied (as BT.CPP copies a
+    ``std::vector``), a string is split as a literal; the popped copy is the node's own,
+    so the entry itself never changes (BT.CPP pops a ``SharedQueue`` in place, a type
+    only C++ code can put on a blackboard)."""
+
+    item_type: str
+
+    def __init__(self, *args: Any) -> None:
+        super().__init__(*args)
+        self.queue: list[Any] | None = None
+        self.child_running = False
+        key, raw = self._port("queue") if "queue" in self.node.ports else (None, None)
+        self._static = None if raw is None or key is not None else self._split(raw)
+
+    def _split(self, text: str) -> list[Any]:
+        parts = split_queue(text)
+        if self.item_type == "str":
+            return parts
+        try:
+            return [convert(part, self.item_type) for part in parts]
+        except PortValueError as error:
+            raise NodeExecutionError(self.node, f"port 'queue': {error}") from None
+
+    def _read_queue(self) -> list[Any] | None:
+        key, _ = self._port("queue")
+        if key is None or not self.blackboard.exists(key):
+            return None
+        value = self.blackboard.get(key)
+        if isinstance(value, str):
+            return self._split(value)
+        if isinstance(value, list | tuple):
+            try:
+                return [convert(item, self.item_type) for item in value]
+            except PortValueError as error:
+                raise NodeExecutionError(self.node, f"port 'queue': {error}") from None
+        raise NodeExecutionError(
+            self.node, f"port 'queue': entry {key!r} holds neither a list nor a string"
+        )
+
+    def tick(self) -> Status:
+        popped = False
+        if self.status is IDLE:
+            self.child_running = False
+            self.queue = list(self._static) if self._static is not None else None
+        if not self.child_running:
+            if self.queue is None and self._static is None and "queue" in self.node.ports:
+                self.queue = self._read_queue()
+            if self.queue:
+                value = self.queue.pop(0)
+                popped = True
+                if "value" in self.node.ports:
+                    self.set_output("value", value)
+        if not popped and not self.child_running:
+            return self.get_input("if_empty", "status")
+        if self.status is IDLE:
+            self.set_status(RUNNING)
+        result = self.child.execute_tick()
+        self.child_running = result is RUNNING
+        if result is SUCCESS or result is FAILURE:
+            self.reset_child()
+        return FAILURE if result is FAILURE else RUNNING
+
+    def halt(self) -> None:
+        self.child_running = False
+        super().halt()
+
+
+def loop_class(type_id: str, item_type: str) -> type[_QueueLoop]:
+    """The Loop class of one element type (LoopInt: ``int``…)."""
+    return type(type_id, (_QueueLoop,), {"item_type": item_type, "__doc__": _QueueLoop.__doc__})
+
+
+LOOPS = {"LoopInt": "int", "LoopDouble": "double", "LoopString": "str", "LoopBool": "bool"}
+
+
+class _EntryUpdated(DecoratorBehavior):
+    """SkipUnlessUpdated and WaitValueUpdate: tick the child only when the blackboard entry
+    named by ``entry`` (``{key}`` or a plain key) was written since this node last looked
+    (every write counts, the same value too; a missing entry was not written); otherwise
+    return ``not_updated``. A child left RUNNING is ticked on without looking."""
+
+    not_updated: Status
+    required_ports = ("entry",)
+
+    def __init__(self, *args: Any) -> None:
+        super().__init__(*args)
+        self.child_running = False
+        self.watch = EntryWatch(self.node.ports["entry"].value if self.has_port("entry") else "")
+
+    def tick(self) -> Status:
+        if not self.child_running and not self.watch.updated(self.blackboard):
+            return self.not_updated
+        result = self.child.execute_tick()
+        self.child_running = result is RUNNING
+        return result
+
+    def halt(self) -> None:
+        self.child_running = False
+        super().halt()
+
+
+class SkipUnlessUpdated(_EntryUpdated):
+    """Tick the child when ``entry`` was updated since the last look, else SKIPPED."""
+
+    not_updated = SKIPPED
+
+
+class WaitValueUpdate(_EntryUpdated):
+    """Tick the child when ``entry`` was updated since the last look, else RUNNING."""
+
+    not_updated = RUNNING
+
+
 class SubTree(DecoratorBehavior):
     """Tick the subtree's root; RUNNING is set only when starting from IDLE, and the
     SubTree node keeps its result until its parent resets it."""
@@ -254,4 +377,7 @@ DECORATORS: dict[str, type[Behavior]] = {
     "Delay": Delay,
     "Timeout": Timeout,
     "SubTree": SubTree,
+    "SkipUnlessUpdated": SkipUnlessUpdated,
+    "WaitValueUpdate": WaitValueUpdate,
+    **{type_id: loop_class(type_id, item) for type_id, item in LOOPS.items()},
 }

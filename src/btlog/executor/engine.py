@@ -117,7 +117,7 @@ class Executor:
         board = Blackboard(scope, parent, remap, autoremap)
         for name, written in literals:
             value = parse_literal(written)
-            board.entries[name] = value
+            board.preset(name, value)
             self._initial_writes.append((board, name, value))
         return board
 

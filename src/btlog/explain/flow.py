@@ -20,6 +20,7 @@ from btlog.history import History
 from btlog.state import State
 from btlog.status import FAILURE, RUNNING, SUCCESS, Status
 from btlog.tree.model import CONTROL, Node, Tree, blackboard_key
+from btlog.tree.ports import split_queue
 
 #: A rule's result: execution nodes ticked next, or the parent's own completion status.
 Step = list[Node] | Status
@@ -112,11 +113,7 @@ def _repeat(parent: Node, child: Node, status: Status, now: Now) -> Step:
     limit = attempts_of(parent, "num_cycles")
     if limit is None:
         return entry(child, now.state)
-    done, seq = 0, now.state.seq
-    if now.history is not None:
-        start = now.history.last([parent.uid], tuple(Status), 0, seq, starts=True)
-        lo = 0 if start is None else start.seq
-        done = now.history.count([child.uid], (SUCCESS,), lo, seq)
+    done = _successes_in_activation(parent, child, now)
     return entry(child, now.state) if done + 1 < limit else SUCCESS
 
 
@@ -145,6 +142,50 @@ def _until_failure(parent: Node, child: Node, status: Status, now: Now) -> Step:
 _SEQUENCE = _in_order(SUCCESS)
 
 
+def _try_catch(parent: Node, child: Node, status: Status, now: Now) -> Step:
+    """TryCatch: the try children as a Sequence; a failure runs the catch (the last
+    child), after which the node fails."""
+    catch = parent.children[-1]
+    if child is catch:
+        return FAILURE
+    if status is FAILURE:
+        return entry(catch, now.state)
+    index = parent.children.index(child)
+    return (
+        entry(parent.children[index + 1], now.state) if index + 2 < len(parent.children) else status
+    )
+
+
+def _loop(parent: Node, child: Node, status: Status, now: Now) -> Step:
+    """LoopInt/Double/String/Bool: the child runs once per element of the queue (a
+    literal, or a list or string entry), then the node returns ``if_empty``."""
+    if status is FAILURE:
+        return FAILURE
+    port = parent.ports.get("queue")
+    queue: object = port.value if port is not None else ""
+    key = blackboard_key(port.value) if port is not None else None
+    if key is not None:
+        queue = now.state.blackboard.get(parent.scope, {}).get(key)
+    if isinstance(queue, str):
+        queue = split_queue(queue)
+    if not isinstance(queue, list):
+        return entry(child, now.state)
+    done = _successes_in_activation(parent, child, now)
+    if done + 1 < len(queue):
+        return entry(child, now.state)
+    empty = parent.ports.get("if_empty")
+    return FAILURE if empty is not None and empty.value.strip().upper() == "FAILURE" else SUCCESS
+
+
+def _successes_in_activation(parent: Node, child: Node, now: Now) -> int:
+    """How many times ``child`` succeeded since ``parent`` last started."""
+    if now.history is None:
+        return 0
+    seq = now.state.seq
+    start = now.history.last([parent.uid], tuple(Status), 0, seq, starts=True)
+    return now.history.count([child.uid], (SUCCESS,), 0 if start is None else start.seq, seq)
+
+
 def _recovery(parent: Node, child: Node, status: Status, now: Now) -> Step:
     """Nav2's RecoveryNode: the first child's failure runs the recovery, whose success
     runs the first child again."""
@@ -156,10 +197,14 @@ def _recovery(parent: Node, child: Node, status: Status, now: Now) -> Step:
 
 FLOW: dict[str, Rule] = {
     "Sequence": _SEQUENCE,
+    "AsyncSequence": _SEQUENCE,
     "SequenceWithMemory": _in_order(SUCCESS),
     "ReactiveSequence": _in_order(SUCCESS),
     "Fallback": _in_order(FAILURE),
+    "AsyncFallback": _in_order(FAILURE),
     "ReactiveFallback": _in_order(FAILURE),
+    "TryCatch": _try_catch,
+    **{f"Loop{item}": _loop for item in ("Int", "Double", "String", "Bool")},
     "Parallel": _parallel,
     "ParallelAll": _parallel,
     "IfThenElse": _if_then_else,

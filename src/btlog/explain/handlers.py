@@ -149,9 +149,21 @@ def attempts_of(node: Node, port: str, default: int | None = None) -> int | None
     return None if value < 0 else value
 
 
+class TryCatchHandler(FallbackHandler):
+    """TryCatch: a failure in the try block runs the catch (the last child); then the
+    node fails, whatever the catch did."""
+
+    def react(self, node: Node, child: Node, failures: int) -> Reaction:
+        """Fall back to the catch, or propagate when the catch itself failed."""
+        catch = node.children[-1]
+        return Reaction(PROPAGATED) if child is catch else Reaction(FELL_BACK, catch)
+
+
 HANDLERS: dict[str, FailureHandler] = {
     "Fallback": FallbackHandler(),
+    "AsyncFallback": FallbackHandler(),
     "ReactiveFallback": FallbackHandler(),
+    "TryCatch": TryCatchHandler(),
     "RetryUntilSuccessful": RetryHandler(),
     "RecoveryNode": RecoveryHandler(),
 }

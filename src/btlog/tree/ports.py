@@ -82,6 +82,15 @@ def _convert_value(value: Any, type_name: str) -> Any:
     return value
 
 
+def split_queue(text: str) -> list[str]:
+    """The elements of a queue written ``1;2;3`` (LoopInt and its kind), split as BT.CPP's
+    ``splitString`` splits: a trailing ``;`` adds no element, ``a;;b`` has an empty one."""
+    parts = text.split(";")
+    if parts[-1] == "":
+        parts.pop()
+    return parts
+
+
 def parse_literal(text: str) -> Any:
     """A SubTree literal as BT.CPP stores it: int, then float, else the string."""
     stripped = text.strip()

@@ -82,12 +82,16 @@ def _switch_ports(cases: int) -> dict[str, PortSpec]:
 def _builtins() -> dict[str, NodeType]:
     many = (1, None)
     one = (1, 1)
+    entry = {"entry": _in("any")}
     types = [
         NodeType("Sequence", CONTROL, children=many),
+        NodeType("AsyncSequence", CONTROL, children=many),
         NodeType("SequenceWithMemory", CONTROL, children=many),
         NodeType("ReactiveSequence", CONTROL, children=many),
         NodeType("Fallback", CONTROL, children=many),
+        NodeType("AsyncFallback", CONTROL, children=many),
         NodeType("ReactiveFallback", CONTROL, children=many),
+        NodeType("TryCatch", CONTROL, {"catch_on_halt": _in("bool", "false")}, children=(2, None)),
         NodeType(
             "Parallel",
             CONTROL,
@@ -119,6 +123,26 @@ def _builtins() -> dict[str, NodeType]:
         NodeType(
             "Precondition", DECORATOR, {"if": _in(), "else": _in("status", "FAILURE")}, children=one
         ),
+        *(
+            NodeType(
+                f"Loop{name}",
+                DECORATOR,
+                {
+                    "queue": PortSpec(INOUT, "any"),
+                    "if_empty": _in("status", "SUCCESS"),
+                    "value": PortSpec(OUTPUT, item),
+                },
+                children=one,
+            )
+            for name, item in (
+                ("Int", "int"),
+                ("Double", "double"),
+                ("String", "str"),
+                ("Bool", "bool"),
+            )
+        ),
+        NodeType("SkipUnlessUpdated", DECORATOR, entry, children=one),
+        NodeType("WaitValueUpdate", DECORATOR, entry, children=one),
         NodeType("SubTree", SUBTREE, children=one),
         NodeType("AlwaysSuccess", ACTION),
         NodeType("AlwaysFailure", ACTION),
@@ -129,6 +153,7 @@ def _builtins() -> dict[str, NodeType]:
         ),
         NodeType("UnsetBlackboard", ACTION, {"key": _in()}),
         NodeType("Sleep", ACTION, {"msec": _in("unsigned")}),
+        NodeType("WasEntryUpdated", ACTION, entry),
     ]
     return {t.id: t for t in [*types, *_nav2_builtins()]}
 
