@@ -216,7 +216,7 @@ def body(text: str, trees: str = "") -> str:
             '<root BTCPP_format="4">\n<BehaviorTree ID="A"><AlwaysSuccess/></BehaviorTree>'
             '<BehaviorTree ID="B"><AlwaysSuccess/></BehaviorTree></root>',
             1,
-            "several <BehaviorTree> and no main_tree_to_execute",
+            "2 trees and no main_tree_to_execute; the trees no other tree calls: 'A', 'B'",
         ),
         (
             body(

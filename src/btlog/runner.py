@@ -61,6 +61,15 @@ class RunConfig:
     nodes_model: str | None = None
     descriptions_file: str | None = None
     descriptions: dict[str, str] | None = None
+    #: ``--main-tree``: the tree to create (else as BT.CPP chooses; see ``load_tree``)
+    main_tree: str | None = None
+    #: ``--trees``: more files and folders registered before the main tree is created
+    trees: list[str] = field(default_factory=list)
+
+    def load_tree(self) -> Tree:
+        """The tree of this run: the file, ``--trees``, ``--main-tree``, ``--nodes-model``."""
+        registry = load_nodes_model(self.nodes_model) if self.nodes_model else None
+        return load_tree(self.tree, registry, self.main_tree, trees=self.trees)
 
     def load_descriptions(self) -> dict[str, str]:
         """The descriptions (recorded mapping, or the file's entries; none by default)."""
@@ -104,6 +113,8 @@ class RunConfig:
             "max_ticks": str(self.max_ticks),
             "clock": "wall" if self.realtime else "sim",
             "nodes_model": self.nodes_model or "",
+            "main_tree": self.main_tree or "",
+            "trees": json.dumps([str(Path(t).resolve()) for t in self.trees]),
             "descriptions": json.dumps(self.load_descriptions()),
             "descriptions_file": self.descriptions_file or "",
             "btlog_version": __version__,
@@ -131,6 +142,8 @@ class RunConfig:
             realtime=metadata.get("clock") == "wall",
             nodes_model=metadata.get("nodes_model") or None,
             descriptions=dict(loaded("descriptions", {})),
+            main_tree=metadata.get("main_tree") or None,
+            trees=list(loaded("trees", [])),
         )
 
 
@@ -179,17 +192,24 @@ def _refuse_unreachable(question: LiveQuestion, config: RunConfig) -> None:
         )
 
 
-def execute(
-    config: RunConfig,
-    output: str | os.PathLike | None = None,
-    on_answer: Callable[[LiveQuestion, Answer, int], None] | None = None,
-    on_tick: Callable[[int], None] | None = None,
-) -> RunResult:
-    """Run ``config`` and record it; returns where the recording is and how it ended."""
-    registry = load_nodes_model(config.nodes_model) if config.nodes_model else None
-    tree = load_tree(config.tree, registry)
-    descriptions = config.load_descriptions()
-    undescribed = apply_descriptions(tree, descriptions)
+@dataclass
+class Prepared:
+    """A run ready for its first tick: everything ``prepare`` loaded and checked."""
+
+    tree: Tree
+    outcomes: Outcomes
+    questions: list[LiveQuestion]
+    executor: Executor
+    #: descriptions file entries that name no node
+    undescribed: list[str]
+
+
+def prepare(config: RunConfig) -> Prepared:
+    """Load and check everything a run needs before its first tick (``btlog validate``
+    makes these checks too): the tree, descriptions, outcomes, questions, domain, clock
+    settings, and the executor with its leaves."""
+    tree = config.load_tree()
+    undescribed = apply_descriptions(tree, config.load_descriptions())
     outcomes = config.load_outcomes()
     outcomes.check_keys(tree)
     try:
@@ -212,6 +232,23 @@ def execute(
             _refuse_unreachable(question, config)
     clock = WallClock(config.tick_period) if config.realtime else SimClock(config.tick_period)
     executor = Executor(tree, clock=clock, leaf_factory=domain.leaf_factory(tree, outcomes))
+    return Prepared(tree, outcomes, questions, executor, undescribed)
+
+
+def execute(
+    config: RunConfig,
+    output: str | os.PathLike | None = None,
+    on_answer: Callable[[LiveQuestion, Answer, int], None] | None = None,
+    on_tick: Callable[[int], None] | None = None,
+) -> RunResult:
+    """Run ``config`` and record it; returns where the recording is and how it ended."""
+    prepared = prepare(config)
+    tree, outcomes, questions, executor = (
+        prepared.tree,
+        prepared.outcomes,
+        prepared.questions,
+        prepared.executor,
+    )
     run_id = uuid.uuid4().hex[:12]
     path = Path(output) if output else default_output(config.tree, run_id)
     refuse_overwrite(
@@ -255,7 +292,8 @@ def execute(
         live.answered if live is not None else [],
         live.refused if live is not None else [],
         [
+            *tree.warnings,
             *outcomes.unapplied(executor.tree, activations),
-            *(f"{config.descriptions_file}: {key!r} names no node" for key in undescribed),
+            *(f"{config.descriptions_file}: {key!r} names no node" for key in prepared.undescribed),
         ],
     )

@@ -8,6 +8,7 @@ memory with every leaf succeeding at once (what the tree does when nothing goes 
 from __future__ import annotations
 
 import os
+from collections.abc import Sequence
 from typing import Any
 
 from btlog.domains.outcomes import Outcomes, scripted_leaf_factory
@@ -32,13 +33,16 @@ def executed_actions(recording: Recording | str | os.PathLike[str]) -> list[Exec
     return actions_from_events(recording.tree, recording.events)
 
 
-def nominal_actions(tree_path: str | os.PathLike[str]) -> list[ExecutedAction]:
+def nominal_actions(
+    tree_path: str | os.PathLike[str], main_tree: str | None = None, trees: Sequence[str] = ()
+) -> list[ExecutedAction]:
     """The nominal sequence of a tree: its actions when every leaf succeeds at once.
 
-    The tree runs in memory (simulated clock, scripted leaves, no file) until the root
-    completes or ``NOMINAL_MAX_TICKS`` ticks have passed.
+    The tree (``main_tree`` of the file and of ``trees``, as ``load_tree`` chooses) runs in
+    memory (simulated clock, scripted leaves, no file) until the root completes or
+    ``NOMINAL_MAX_TICKS`` ticks have passed.
     """
-    tree = load_tree(os.fspath(tree_path))
+    tree = load_tree(os.fspath(tree_path), main_tree=main_tree, trees=trees)
     defaults: dict[str, Any] = {"default": {"status": "SUCCESS", "duration": 0}}
     outcomes = Outcomes.from_mapping(defaults, "nominal outcomes")
     executor = Executor(tree, clock=SimClock(), leaf_factory=scripted_leaf_factory(tree, outcomes))
@@ -60,10 +64,14 @@ def is_recording(path: str | os.PathLike[str]) -> bool:
         return True  # let the recording reader report the missing/unreadable file
 
 
-def actions_of(path: str | os.PathLike[str]) -> list[ExecutedAction]:
+def actions_of(
+    path: str | os.PathLike[str], main_tree: str | None = None, trees: Sequence[str] = ()
+) -> list[ExecutedAction]:
     """The behaviour stored at ``path``: a recording's executed actions, or a tree XML's
-    nominal sequence."""
-    return executed_actions(path) if is_recording(path) else nominal_actions(path)
+    nominal sequence (``main_tree`` and ``trees`` as for ``nominal_actions``)."""
+    if is_recording(path):
+        return executed_actions(path)
+    return nominal_actions(path, main_tree, trees)
 
 
 def label(path: str | os.PathLike[str]) -> str:
@@ -72,6 +80,14 @@ def label(path: str | os.PathLike[str]) -> str:
     return name if is_recording(path) else f"{name} (nominal sequence of the tree)"
 
 
-def diff_paths(a: str | os.PathLike[str], b: str | os.PathLike[str]) -> Divergence:
-    """Compare the behaviours stored at two paths (recordings or tree XML files)."""
-    return diverge(actions_of(a), actions_of(b), label(a), label(b))
+def diff_paths(
+    a: str | os.PathLike[str],
+    b: str | os.PathLike[str],
+    main_tree: str | None = None,
+    trees: Sequence[str] = (),
+) -> Divergence:
+    """Compare the behaviours stored at two paths (recordings or tree XML files; a tree
+    is chosen with ``main_tree`` and ``trees``)."""
+    return diverge(
+        actions_of(a, main_tree, trees), actions_of(b, main_tree, trees), label(a), label(b)
+    )

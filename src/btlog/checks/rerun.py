@@ -152,12 +152,15 @@ def rerun(
     run_path: str | os.PathLike,
     tree: str | os.PathLike | None = None,
     keep: str | os.PathLike | None = None,
+    main_tree: str | None = None,
+    trees: list[str] | None = None,
 ) -> RerunReport:
     """Execute the run's tree again with its recorded settings and compare the behaviours.
 
     The tree is the recorded tree file as it is now, or ``tree``. The re-run uses the
     recorded domain, seed, outcomes, ``--fail`` specs and live questions, on the simulated
-    clock, into a temporary file (or into ``keep``, which is left in place). Any divergent
+    clock, into a temporary file (or into ``keep``, which is left in place); ``main_tree``
+    and ``trees``, when given, replace the recorded ``--main-tree`` and ``--trees``. Any divergent
     action, another final status or, for a run recorded on the simulated clock, another
     duration, tick count or event count (a recording made by older code) fails.
     """
@@ -166,6 +169,10 @@ def rerun(
     recorded = open_recording(run_path)
     tree_path = tree_for_rerun(run_path, recorded.metadata, tree)
     config = replace(RunConfig.from_metadata(recorded.metadata, tree=tree_path), realtime=False)
+    if main_tree is not None:
+        config.main_tree = main_tree
+    if trees:
+        config.trees = trees
     with tempfile.TemporaryDirectory(prefix="btlog-rerun-") as folder:
         result = execute(config, keep if keep is not None else Path(folder) / "rerun.mcap")
         again = open_recording(result.path)

@@ -41,7 +41,7 @@ _STYLES = {
 def diff(args: Namespace) -> int:
     """``btlog diff A B``: the divergence of two runs, or of a run and a tree; as diff(1),
     exit 0 when they are the same and 1 when they diverge."""
-    divergence = diff_paths(args.a, args.b)
+    divergence = diff_paths(args.a, args.b, args.main_tree, args.trees)
     verdict = EXIT_OK if divergence.identical else EXIT_CHECK_FAILED
     if args.json:
         print(json.dumps(to_json(divergence), indent=2))
@@ -56,8 +56,8 @@ def _check_options(args: Namespace) -> Expectations | None:
     """Validate the option combination and read the expectations before any run."""
     if not args.expect and not args.rerun:
         raise ValueError("check needs --expect FILE or --rerun")
-    if args.tree and not args.rerun:
-        raise ValueError("--tree TREE is only used with --rerun")
+    if (args.tree or args.main_tree or args.trees) and not args.rerun:
+        raise ValueError("--tree, --main-tree and --trees are only used with --rerun")
     return load_expectations(args.expect) if args.expect else None
 
 
@@ -66,7 +66,7 @@ def _check_one(
 ) -> tuple[list[CheckResult], RerunReport | None]:
     results = check_run(path, expectations) if expectations is not None else []
     keep = _rerun_file(path, args) if args.rerun and getattr(args, "html", None) else None
-    report = rerun(path, args.tree, keep) if args.rerun else None
+    report = rerun(path, args.tree, keep, args.main_tree, args.trees) if args.rerun else None
     return results, report
 
 

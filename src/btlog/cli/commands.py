@@ -26,7 +26,6 @@ from btlog.render.escape import safe
 from btlog.render.terminal import blackboard_lines, format_ns, make_console, tree_lines
 from btlog.runner import RunConfig, execute
 from btlog.status import Status
-from btlog.tree.loader import load_tree
 
 if TYPE_CHECKING:
     from btlog.replay.database import Run, RunDatabase
@@ -55,6 +54,8 @@ def run(args: Namespace) -> int:
         realtime=args.realtime,
         flush_interval=args.flush_interval,
         descriptions_file=args.descriptions,
+        main_tree=args.main_tree,
+        trees=args.trees,
     )
     console = make_console()
     progress: Progress | None = None
@@ -366,15 +367,26 @@ def recover(args: Namespace) -> int:
     return 0
 
 
+#: How ``validate`` says why the main tree is the one (``Tree.main_choice``).
+MAIN_TREE_CHOICES = {
+    "uncalled": " (the only tree no other tree calls; --main-tree chooses another)",
+    "--main-tree": " (--main-tree)",
+}
+
+
 def validate(args: Namespace) -> int:
     """``btlog validate``: load a tree, build it as ``run`` does (every check a run makes
     before its first tick), and report what it holds."""
-    tree = load_tree(args.tree)
-    from btlog.domains import make_domain
-    from btlog.domains.outcomes import Outcomes
-    from btlog.executor.engine import Executor
+    from btlog.runner import prepare
 
-    Executor(tree, leaf_factory=make_domain("scripted").leaf_factory(tree, Outcomes()))
+    config = RunConfig(
+        tree=args.tree,
+        outcomes_file=args.outcomes,
+        nodes_model=args.nodes_model,
+        main_tree=args.main_tree,
+        trees=args.trees,
+    )
+    tree = prepare(config).tree
     kinds = Counter(n.kind for n in tree)
     subtrees = [n for n in tree if n.kind == "subtree"]
     leaf_types = sorted({n.type for n in tree if n.is_execution})
@@ -383,6 +395,8 @@ def validate(args: Namespace) -> int:
             {
                 "file": args.tree,
                 "main_tree": tree.name,
+                "main_tree_choice": tree.main_choice,
+                "warnings": tree.warnings,
                 "format": tree.format,
                 "nodes": len(tree),
                 "kinds": dict(kinds),
@@ -392,8 +406,11 @@ def validate(args: Namespace) -> int:
             }
         )
         return 0
+    for warning in tree.warnings:
+        print(f"btlog validate: warning: {safe(warning)}", file=sys.stderr)
     print(f"{safe(args.tree)}: OK (BehaviorTree.CPP v{tree.format} format)")
-    print(f"  main tree: {safe(tree.name)}; goal: {safe(tree.root.description)}")
+    why = MAIN_TREE_CHOICES.get(tree.main_choice, "")
+    print(f"  main tree: {safe(tree.name)}{why}; goal: {safe(tree.root.description)}")
     print(
         "  nodes: "
         + str(len(tree))

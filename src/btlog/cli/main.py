@@ -18,6 +18,7 @@ from typing import NoReturn
 
 from btlog import __version__
 from btlog.cli.limit_flags import add_limit_flags, apply_limit_flags
+from btlog.cli.tree_flags import add_tree_flags
 from btlog.errors import EXIT_BAD_INPUT, EXIT_BUG, EXIT_OK, one_line
 from btlog.render.escape import safe
 
@@ -55,6 +56,15 @@ def _add_descriptions(parser: argparse.ArgumentParser) -> None:
     )
 
 
+def _add_nodes_model(parser: argparse.ArgumentParser) -> None:
+    parser.add_argument(
+        "--nodes-model",
+        metavar="FILE",
+        help="XML with a <TreeNodesModel> giving your node types' kinds and ports "
+        "(e.g. Nav2's nav2_tree_nodes.xml: its conditions then run as conditions)",
+    )
+
+
 def build_parser() -> argparse.ArgumentParser:
     """The argument parser of every command."""
     parser = OneLineParser(
@@ -69,17 +79,13 @@ def build_parser() -> argparse.ArgumentParser:
         description="Execute a tree and record every event to MCAP.",
     )
     run.add_argument("tree", metavar="TREE", help="BehaviorTree.CPP XML file")
+    add_tree_flags(run)
     add_limit_flags(run)
     run.add_argument(
         "--domain", default="scripted", help="simulated domain: scripted (default), kitting, taxi"
     )
     run.add_argument("--outcomes", metavar="F", help="outcomes file (YAML or JSON)")
-    run.add_argument(
-        "--nodes-model",
-        metavar="FILE",
-        help="XML with a <TreeNodesModel> giving your leaf types' kinds and ports "
-        "(e.g. Nav2's nav2_tree_nodes.xml: its conditions then run as conditions)",
-    )
+    _add_nodes_model(run)
     run.add_argument(
         "--fail",
         metavar="SPEC",
@@ -199,12 +205,14 @@ def build_parser() -> argparse.ArgumentParser:
     diff = commands.add_parser("diff", help="divergence between two runs (or a run and a tree)")
     diff.add_argument("a", metavar="A", help="a recording")
     diff.add_argument("b", metavar="B", help="a recording, or a tree XML (its nominal run)")
+    add_tree_flags(diff)
     add_limit_flags(diff)
     diff.add_argument("--json", action="store_true", help="JSON output")
     diff.add_argument("--plain", action="store_true", help="no colour")
 
     check = commands.add_parser("check", help="regression checks on stored runs")
     check.add_argument("runs", metavar="RUN", nargs="+")
+    add_tree_flags(check)
     add_limit_flags(check)
     check.add_argument("--expect", metavar="F", help="expectations file (YAML)")
     check.add_argument(
@@ -235,6 +243,11 @@ def build_parser() -> argparse.ArgumentParser:
 
     validate = commands.add_parser("validate", help="load and check a tree")
     validate.add_argument("tree", metavar="TREE")
+    add_tree_flags(validate)
+    _add_nodes_model(validate)
+    validate.add_argument(
+        "--outcomes", metavar="F", help="check an outcomes file against the tree too"
+    )
     add_limit_flags(validate)
     validate.add_argument("--json", action="store_true", help="JSON output")
 

@@ -16,7 +16,7 @@ from dataclasses import dataclass, replace
 
 from btlog import limits
 from btlog.tree.descriptions import DESCRIPTION
-from btlog.tree.documents import Definition, Documents
+from btlog.tree.documents import SUBTREE_TAGS, Definition, Documents
 from btlog.tree.model import (
     ACTION,
     CONDITION,
@@ -45,7 +45,6 @@ GENERIC_TAGS = {
     "Control": CONTROL,
     "Decorator": DECORATOR,
 }
-SUBTREE_TAGS = ("SubTree", "SubTreePlus")
 V3_IGNORED = frozenset({"__shared_blackboard", "__autoremap", "_description"})
 #: Built-in nodes whose port holds a script, checked when the tree is loaded.
 SCRIPT_PORTS = {"Script": "code", "ScriptCondition": "code", "Precondition": "if"}
@@ -91,7 +90,7 @@ class TreeBuilder:
         context = BuildContext(definition.file, ancestors=(main,))
         root = self._build(definition.root_element(), context)
         _describe_by_tree(root, definition)
-        files = [d.file for d in self.documents.documents]
+        files = self.documents.files({node.file for node in root.walk()})
         return Tree(root=root, name=main, format=self.format, files=files)
 
     def _next_uid(self, file: str, line: int, depth: int) -> int:
@@ -345,13 +344,8 @@ def _expanded_size(definitions: dict[str, Definition], main: str, cap: int) -> i
     own: dict[str, int] = {}
     calls: dict[str, list[str]] = {}
     for tree_id, definition in definitions.items():
-        elements = list(definition.element.iter())[1:]
-        own[tree_id] = len(elements)
-        calls[tree_id] = [
-            e.get("ID", "")
-            for e in elements
-            if e.tag in SUBTREE_TAGS and e.get("ID", "") in definitions
-        ]
+        own[tree_id] = sum(1 for _ in definition.element.iter()) - 1
+        calls[tree_id] = [c for c in definition.calls() if c in definitions]
     sizes: dict[str, int] = {}
     path = {main}
     stack = [(main, iter(calls[main]))]

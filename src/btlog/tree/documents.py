@@ -15,10 +15,11 @@ from pathlib import Path
 from btlog import limits
 from btlog.tree.model import ACTION, CONDITION, CONTROL, DECORATOR, SUBTREE
 from btlog.tree.registry import NodeType, PortSpec, Registry
-from btlog.tree.xml_source import TreeError, parse_xml
+from btlog.tree.xml_source import TreeError, parse_xml, read_xml_file
 from btlog.tree.xml_syntax import XmlElement
 
 MAX_INCLUDE_DEPTH = 16
+SUBTREE_TAGS = ("SubTree", "SubTreePlus")
 MODEL_KINDS = {
     "Action": ACTION,
     "Condition": CONDITION,
@@ -45,6 +46,12 @@ class Definition:
         """The tree's one node element."""
         return self.element.children[0]
 
+    def calls(self) -> list[str]:
+        """The IDs of the subtrees this tree's ``<SubTree>`` nodes call, in order."""
+        return [
+            e.get("ID", "") for e in self.element.iter() if e.tag in SUBTREE_TAGS and e.get("ID")
+        ]
+
 
 @dataclass
 class Document:
@@ -54,6 +61,8 @@ class Document:
     root: XmlElement
     format: int | None
     main: str | None
+    #: read from ``--trees`` (itself or through its includes), not from the tree file
+    registered: bool = False
 
 
 @dataclass
@@ -65,12 +74,45 @@ class Documents:
     definitions: dict[str, Definition] = field(default_factory=dict)
     #: subtree instances of BT.CPP-written XML, by their ``_fullpath``
     instances: dict[str, Definition] = field(default_factory=dict)
+    #: what was accepted with a remark (see ``Tree.warnings``)
+    warnings: list[str] = field(default_factory=list)
+    _registering: bool = False
+
+    def files(self, used: set[str]) -> list[str]:
+        """The files of the tree: the tree file and its includes, and the registered
+        files (``--trees``) that hold a tree of ``used`` files."""
+        return [d.file for d in self.documents if not d.registered or d.file in used]
+
+    def read_file(self, path: Path, only_trees: bool = False) -> None:
+        """Read a file as BT.CPP's ``registerBehaviorTreeFromFile`` does (its includes
+        against its folder); a file already read is skipped. ``only_trees`` (a file found
+        in a folder) skips quietly an XML file whose top element is not ``<root>``."""
+        resolved = str(path.resolve())
+        if any(str(Path(d.file).resolve()) == resolved for d in self.documents):
+            return
+        root = parse_xml(read_xml_file(path), str(path))
+        if only_trees and root.tag != "root":
+            return
+        self._registering = True
+        try:
+            self._read_root(root, str(path), path.parent)
+        finally:
+            self._registering = False
 
     def read(
         self, data: bytes, file: str, folder: Path, depth: int = 0, seen: tuple[str, ...] = ()
     ) -> None:
         """Read the document ``data`` (from ``file``) and, recursively, what it includes."""
-        root = parse_xml(data, file)
+        self._read_root(parse_xml(data, file), file, folder, depth, seen)
+
+    def _read_root(
+        self,
+        root: XmlElement,
+        file: str,
+        folder: Path,
+        depth: int = 0,
+        seen: tuple[str, ...] = (),
+    ) -> None:
         if root.tag != "root":
             raise TreeError(
                 f"the top element must be <root>, not <{root.tag}>", file, root.sourceline
@@ -79,7 +121,13 @@ class Documents:
         if fmt is not None and fmt.strip() not in ("3", "4"):
             raise TreeError(f"unsupported BTCPP_format {fmt!r} (3 or 4)", file, root.sourceline)
         self.documents.append(
-            Document(file, root, int(fmt) if fmt else None, root.get("main_tree_to_execute"))
+            Document(
+                file,
+                root,
+                int(fmt) if fmt else None,
+                root.get("main_tree_to_execute"),
+                self._registering,
+            )
         )
         children = root.children
         for element in children:
@@ -89,26 +137,44 @@ class Documents:
                 self.read_model(element, file)
             elif element.tag == "include":
                 self._include(element, file, folder, depth, (*seen, file))
-            else:
-                raise TreeError(
-                    f"unexpected element <{element.tag}> under <root>", file, element.sourceline
+            else:  # BT.CPP reads only these three and ignores the rest
+                self.warnings.append(
+                    f"{file}:{element.sourceline}: <{element.tag}> under <root> is ignored "
+                    "(BT.CPP reads only <BehaviorTree>, <include> and <TreeNodesModel>)"
                 )
 
-    def main_tree(self, requested: str | None) -> str:
-        """The ID of the tree to build: ``requested``, else the first document's
-        ``main_tree_to_execute``, else the only tree."""
+    def main_tree(self, requested: str | None) -> tuple[str, str]:
+        """The ID of the tree to build and why it is the one, as a BT.CPP program chooses
+        (``createTree(ID)``): ``requested`` (``--main-tree``), else the first document's
+        ``main_tree_to_execute``, else the only tree; with several trees and none named,
+        the one no other tree calls (preferring the first file's), else an error naming
+        the candidates."""
         first = self.documents[0]
         file, line = first.file, first.root.sourceline
-        main = requested or first.main
         if not self.definitions:
             raise TreeError("no <BehaviorTree> is defined", file, line)
-        if main is None:
-            if len(self.definitions) != 1:
-                raise TreeError("several <BehaviorTree> and no main_tree_to_execute", file, line)
-            main = next(iter(self.definitions))
-        if main not in self.definitions:
-            raise TreeError(f"main tree {main!r} is not defined", file, line)
-        return main
+        main, reason = (requested, "--main-tree") if requested else (first.main, "main_tree")
+        if main is not None:
+            if main not in self.definitions:
+                known = ", ".join(repr(t) for t in self.definitions)
+                raise TreeError(f"main tree {main!r} is not defined (trees: {known})", file, line)
+            return main, reason
+        if len(self.definitions) == 1:
+            return next(iter(self.definitions)), "only"
+        called = {c for d in self.definitions.values() for c in d.calls()}
+        roots = [t for t in self.definitions if t not in called]
+        mine = [t for t in roots if self.definitions[t].file == first.file]
+        for candidates in (mine, roots):
+            if len(candidates) == 1:
+                return candidates[0], "uncalled"
+        names = ", ".join(repr(t) for t in (roots or self.definitions))
+        which = "no other tree calls" if roots else "defined (each is called by another)"
+        raise TreeError(
+            f"{len(self.definitions)} trees and no main_tree_to_execute; the trees {which}: "
+            f"{names}; choose one with --main-tree ID",
+            file,
+            line,
+        )
 
     def _define(self, element: XmlElement, file: str, siblings: int) -> None:
         tree_id = element.get("ID")

@@ -1,7 +1,9 @@
 """Load BehaviorTree.CPP XML (v4, and v3 where no format is given) into a ``Tree``.
 
-The loader follows BT.CPP's own parser: the main tree is ``main_tree_to_execute`` of the
-first document (or the only tree), ``<include path=…>`` is resolved against the including
+The loader follows BT.CPP's own parser: files are registered as a program registers them
+(the tree file, then ``--trees`` files and folders), the main tree is ``--main-tree``, else
+``main_tree_to_execute`` of the first document, else the only tree (else the one tree no
+other tree calls), ``<include path=…>`` is resolved against the including
 file, ``<SubTree>`` nodes are expanded in place with a new blackboard scope, and UIDs are
 assigned in depth-first pre-order from 1 with each subtree's nodes right after its SubTree
 node. v3 rules apply when the root has no ``BTCPP_format``: a SubTree's instance name is
@@ -23,6 +25,7 @@ the file, the line and what is wrong. The jobs are split: ``xml_source`` reads a
 from __future__ import annotations
 
 import os
+from collections.abc import Sequence
 from pathlib import Path
 
 from btlog.tree.builder import TreeBuilder
@@ -31,7 +34,14 @@ from btlog.tree.model import Tree
 from btlog.tree.registry import Registry
 from btlog.tree.xml_source import TreeError, parse_xml, read_xml_file
 
-__all__ = ["TreeError", "load_nodes_model", "load_tree", "load_tree_text", "parse_xml"]
+__all__ = [
+    "TreeError",
+    "load_nodes_model",
+    "load_tree",
+    "load_tree_text",
+    "parse_xml",
+    "tree_files",
+]
 
 
 def _load(
@@ -41,11 +51,32 @@ def _load(
     registry: Registry | None,
     main_tree: str | None,
     accept_unknown: bool,
+    trees: Sequence[str | os.PathLike] = (),
 ) -> Tree:
     documents = Documents((registry or Registry()).copy())
     documents.read(data, file, folder)
-    main = documents.main_tree(main_tree)
-    return TreeBuilder(documents, accept_unknown).build(main)
+    for path, in_folder in tree_files(trees):
+        documents.read_file(path, only_trees=in_folder)
+    main, choice = documents.main_tree(main_tree)
+    tree = TreeBuilder(documents, accept_unknown).build(main)
+    tree.main_choice = choice
+    tree.warnings = [*documents.warnings, *tree.warnings]
+    return tree
+
+
+def tree_files(trees: Sequence[str | os.PathLike]) -> list[tuple[Path, bool]]:
+    """The files ``--trees`` names, each with whether it was found in a folder: a file as
+    it is, a folder as its ``*.xml`` files in name order (not its subfolders)."""
+    files: list[tuple[Path, bool]] = []
+    for entry in trees:
+        path = Path(entry)
+        if path.is_dir():
+            files += [(p, True) for p in sorted(path.glob("*.xml")) if p.is_file()]
+        elif path.exists():
+            files.append((path, False))
+        else:
+            raise TreeError("--trees: no such file or folder", str(entry))
+    return files
 
 
 def load_tree(
@@ -53,11 +84,14 @@ def load_tree(
     registry: Registry | None = None,
     main_tree: str | None = None,
     accept_unknown: bool = False,
+    trees: Sequence[str | os.PathLike] = (),
 ) -> Tree:
-    """Load a tree from an XML file (its includes resolved against its folder);
+    """Load a tree from an XML file (its includes resolved against its folder), as a BT.CPP
+    program registers it, then the files and folders of ``trees`` (``--trees``), and
+    creates ``main_tree`` (``--main-tree``; see ``Documents.main_tree``);
     ``accept_unknown`` accepts node types btlog has no implementation of (imports)."""
     data = read_xml_file(source)
-    return _load(data, str(source), Path(source).parent, registry, main_tree, accept_unknown)
+    return _load(data, str(source), Path(source).parent, registry, main_tree, accept_unknown, trees)
 
 
 def load_tree_text(

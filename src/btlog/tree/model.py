@@ -194,6 +194,12 @@ class Tree:
     format: int = 4
     files: list[str] = field(default_factory=list)
     nodes: dict[int, Node] = field(default_factory=dict)
+    #: what the loader noticed and accepted (a nodes model the XML contradicts, a node
+    #: run as a pass-through, …), one line each; not recorded
+    warnings: list[str] = field(default_factory=list)
+    #: why ``name`` is the main tree: "--main-tree", "main_tree" (main_tree_to_execute),
+    #: "only" (the only tree) or "uncalled" (the only tree no other tree calls)
+    main_choice: str = ""
 
     def __post_init__(self) -> None:
         if not self.nodes:
