@@ -263,11 +263,6 @@ def test_bad_bags_exit_2_with_one_line(tmp_path: Path) -> None:
     other = NAV2 / "navigate_through_poses.xml"
     assert_bad_input(btlog("import", str(bag), "--tree", str(other)), "not the tree that ran")
     assert_bad_input(btlog("import", str(bag)), "holds no tree", "--tree")
-    humble = tmp_path / "humble.mcap"
-    write_nav2_bag(humble, [run], uids=False)
-    assert_bad_input(
-        btlog("import", str(humble), "--tree", str(TREE)), "no uids", "cannot tell them apart"
-    )
 
 
 @settings(max_examples=15, deadline=None, suppress_health_check=[HealthCheck.too_slow])

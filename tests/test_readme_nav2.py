@@ -4,9 +4,8 @@ output block must be what ``explain`` prints, and nothing may warn. The placehol
 the import commands (``my_bag/``, ``my_nav2_tree.xml``) are a bag exported from the
 first commands' run and Nav2's default tree.
 
-The false warning (``'FollowPath' entries 1-2 never applied``) and the naming of a
-one-goal import (``-o nav.mcap`` writing ``nav.mcap``, not ``nav-goal1.mcap``) are
-issue #25's to fix; those assertions are strict xfails until then."""
+A one-goal import writes the file ``-o`` names (several goals: ``OUT-goalN.mcap``),
+as the README says."""
 
 from __future__ import annotations
 
@@ -61,13 +60,11 @@ def test_the_nav2_example_prints_what_the_readme_shows(nav2) -> None:
     assert any("ClearLocalCostmap-Context" in line and "2.000s" in line for line in lines)
 
 
-@pytest.mark.xfail(strict=True, reason="#25: a name shared with the RecoveryNode warns")
 def test_the_nav2_example_warns_about_nothing(nav2) -> None:
     _folder, done = nav2
     assert done.returncode == 0 and done.stderr == ""
 
 
-@pytest.mark.xfail(strict=True, reason="#25: a one-goal import is written as nav.mcap")
 def test_the_nav2_import_commands_run_as_written(nav2) -> None:
     folder, done = nav2
     assert done.returncode == 0, done.stderr
@@ -79,5 +76,8 @@ def test_the_nav2_import_commands_run_as_written(nav2) -> None:
     (importing,) = [b for b in blocks if "btlog import my_bag/" in b]
     done = run_block(importing, folder)
     assert done.returncode == 0, done.stderr
-    assert "I could not FollowPath because FollowPath failed." in done.stdout
-    assert (folder / "nav-ros.mcap").exists()
+    assert "What went wrong?\n  I could not follow path because follow path failed." in (
+        done.stdout
+    )
+    assert done.stderr == ""
+    assert (folder / "robot.mcap").exists() and (folder / "robot-ros.mcap").exists()

@@ -190,6 +190,16 @@ def ask(args: Namespace) -> int:
     return 0
 
 
+#: Metadata of an imported run that says what its source left out, shown by ``explain``.
+NOTE_KEYS = ("mid_run", "incomplete")
+
+
+def recording_notes(metadata: dict) -> list[str]:
+    """What the recording says is missing from the run (a log that begins mid-run, a
+    goal without its result), one note each."""
+    return [str(metadata[key]) for key in NOTE_KEYS if metadata.get(key)]
+
+
 def explain(args: Namespace) -> int:
     """``btlog explain``: the run's story, or Q1–Q6 at a moment (``--at``), and what the
     recording says is missing."""
@@ -197,7 +207,7 @@ def explain(args: Namespace) -> int:
         return _story(args)
     with _moment(args.run, args.at, args.descriptions) as (run, tree, state, moment):
         answers = explain_all(tree, state, run.history())
-        notes = [run.info.metadata["incomplete"]] if run.info.metadata.get("incomplete") else []
+        notes = recording_notes(run.info.metadata)
     if args.json:
         _print_json(
             {
@@ -220,7 +230,7 @@ def _story(args: Namespace) -> int:
 
     with _moment(args.run, "end", args.descriptions) as (run, tree, state, _moment_at):
         told = story(tree, state, run.history())
-        notes = [run.info.metadata["incomplete"]] if run.info.metadata.get("incomplete") else []
+        notes = recording_notes(run.info.metadata)
     if args.json:
         _print_json({**told.to_json(), "notes": notes})
         return 0

@@ -147,11 +147,15 @@ class Outcomes:
 
     def unapplied(self, tree: Tree, activations: dict[int, int]) -> list[str]:
         """One warning per --fail spec and per outcomes entry that no activation used,
-        given how many times each node (by uid) was activated in the run."""
+        given how many times each node (by uid) was activated in the run: the entries of
+        a script of several (a single entry is the rule for every activation, so a node
+        that never ran leaves it unapplied only in name). Keys are looked up among
+        execution nodes, as ``plan_for`` finds them (Nav2's RecoveryNode "FollowPath" is
+        not the action it shares its name with)."""
         warnings = []
 
         def ran(key: str) -> tuple[int, str]:
-            nodes = tree.lookup(key)
+            nodes = tree.lookup(key, leaves_only=True)  # as plan_for finds them
             most = max((activations.get(n.uid, 0) for n in nodes), default=0)
             times = "time" if most == 1 else "times"
             names = " and ".join(sorted({n.description for n in nodes}))
@@ -163,7 +167,9 @@ class Outcomes:
                 warnings.append(f'--fail "{spec}" never applied: {story}')
         for key, entries in self.scripts.items():
             most, story = ran(key)
-            if most < len(entries):
+            # one entry is a rule for every activation, not a script: never running it
+            # leaves nothing unapplied
+            if most < len(entries) and len(entries) > 1:
                 line = self.key_lines.get(key)
                 where = f"{self.where}:{line}" if line else self.where
                 count = len(entries)

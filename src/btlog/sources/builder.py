@@ -83,6 +83,21 @@ class Source:
         return {**head, "blackboard": False, **self.details}
 
 
+def state_at_first_entry(tree: Tree, first: Mapping[int, Status]) -> dict[int, Status]:
+    """The state a log began in, as far as it tells (``first``: each node's previous
+    status in its first entry): that status for each node the log names; RUNNING for
+    every other ancestor of a node not IDLE (BT.CPP ticks a node only through its
+    running ancestors, and a completed one has reset its children); IDLE for the rest."""
+    state = {uid: status for uid, status in first.items() if status is not IDLE}
+    for uid in list(state):
+        node = tree.nodes[uid].parent
+        while node is not None and node.uid not in state:
+            if node.uid not in first:
+                state[node.uid] = RUNNING
+            node = node.parent
+    return state
+
+
 @dataclass
 class BuildResult:
     """What a builder wrote: the file, counts, the last root status and any warnings."""
@@ -172,6 +187,23 @@ class RecordingBuilder:
         self._rows = {uid: change_rows(uid) for uid in tree.nodes}
         if not self._subscribers[1:] and self.recorder.takes_status_batches():
             self._batch = StatusBatch(self.recorder, timed=True)
+
+    def begin_mid_run(self, statuses: Mapping[int, Status]) -> int:
+        """Before the first transition, for a log that begins mid-run: the state at its
+        first entry (``state_at_first_entry``), as transitions from IDLE at time 0 in
+        pre-order, in a tick of their own (the log's first entry starts the next one).
+        Returns how many nodes were not IDLE."""
+        if self._transitions:
+            raise ValueError("begin_mid_run comes before the first transition")
+        count = 0
+        for node in self.tree:
+            status = statuses.get(node.uid, IDLE)
+            if status is not IDLE:
+                self.transition(0, node.uid, status)
+                count += 1
+        if count:
+            self._boundary = True
+        return count
 
     def subscribe(self, subscriber: Subscriber) -> None:
         """Deliver every later event and tick to ``subscriber`` too."""

@@ -25,7 +25,6 @@ from __future__ import annotations
 import os
 from collections.abc import Iterator
 from dataclasses import dataclass, field
-from datetime import UTC, datetime
 from pathlib import Path
 
 from btlog.sources.btcpp_tree import tree_from_file, tree_from_log_xml
@@ -35,7 +34,10 @@ from btlog.sources.builder import (
     RecordingBuilder,
     Source,
     SourceError,
+    state_at_first_entry,
+    wall_start,
 )
+from btlog.sources.name_matching import Entry, match_names
 from btlog.sources.rosbag2 import open_bag
 from btlog.status import FAILURE, IDLE, SUCCESS, Status
 from btlog.tree.loader import TreeError, load_tree
@@ -49,6 +51,11 @@ LOG_TYPE = "nav2_msgs/msg/BehaviorTreeLog"
 XML_TOPIC = "/behavior_tree_xml"
 XML_TYPE = "std_msgs/msg/String"
 STATUS_NAMES = frozenset(s.name for s in Status)
+MID_RUN = (
+    "the log begins mid-run (the recorder started after the goal did): the state at its "
+    "first entry is inferred (each node's previous status in its first entry, RUNNING for "
+    "their other ancestors) and recorded as the first tick"
+)
 INCOMPLETE = (
     "the bag ends before this goal's result: Nav2 publishes /behavior_tree_log only "
     "while the tree is RUNNING, so the goal's last transitions are missing (not invented)"
@@ -65,6 +72,8 @@ class LogEntry:
     uid: int | None
     prev: Status
     status: Status
+    #: the number of the message that carried it (Nav2 publishes one a tick)
+    message: int = 0
 
 
 @dataclass
@@ -123,7 +132,8 @@ def read_bag(path: str | os.PathLike) -> BagLog:
                     log.tree_xml = str(getattr(message.decoded, "data", "")).encode()
                 continue
             log.messages += 1
-            log.entries.extend(_entries(message.decoded, f"{bag.path}: message {log.messages}"))
+            where = f"{bag.path}: message {log.messages}"
+            log.entries.extend(_entries(message.decoded, log.messages, where))
         log.warnings.extend(bag.warnings)
         log.layout = bag.used[LOG_TOPIC].origin if LOG_TOPIC in bag.used else ""
         log.files = list(bag.files)
@@ -132,7 +142,7 @@ def read_bag(path: str | os.PathLike) -> BagLog:
     return log
 
 
-def _entries(decoded: object, where: str) -> Iterator[LogEntry]:
+def _entries(decoded: object, number: int, where: str) -> Iterator[LogEntry]:
     for event in getattr(decoded, "event_log", []):
         uid = getattr(event, "uid", None)
         yield LogEntry(
@@ -141,6 +151,7 @@ def _entries(decoded: object, where: str) -> Iterator[LogEntry]:
             None if uid is None else int(uid),
             _status(event.previous_status, where),
             _status(event.current_status, where),
+            number,
         )
 
 
@@ -171,23 +182,8 @@ def match_uids(entries: list[LogEntry], tree: Tree, where: str) -> tuple[list[in
                     f"tree {there}; --tree is not the tree that ran"
                 )
         return [e.uid or 0 for e in entries], "uid"
-    by_name: dict[str, list[int]] = {}
-    for node in tree:
-        by_name.setdefault(node.description, []).append(node.uid)
-    uids: list[int] = []
-    for entry in entries:
-        found = by_name.get(entry.name, [])
-        if not found:
-            raise SourceError(
-                f"{where}: the log names node {entry.name!r}, which the tree does not have"
-            )
-        if len(found) > 1:
-            raise SourceError(
-                f"{where}: the log has no uids and {len(found)} nodes of the tree are named "
-                f"{entry.name!r} (uids {', '.join(map(str, found))}); cannot tell them apart"
-            )
-        uids.append(found[0])
-    return uids, "name"
+    named = [Entry(e.name, e.prev, e.status, e.message) for e in entries]
+    return match_names(named, tree, where), "name"
 
 
 def split_goals(entries: list[LogEntry], uids: list[int], root: int) -> list[Goal]:
@@ -271,17 +267,28 @@ def _build(
     warnings: list[str],
 ) -> BuildResult:
     start = goal.entries[0][0].t_ns
+    first: dict[int, Status] = {}
+    for entry, uid in goal.entries:
+        first.setdefault(uid, entry.prev)
+    began = state_at_first_entry(tree, first)
     metadata = {} if goal.complete else {"incomplete": INCOMPLETE}
+    if began:
+        metadata["mid_run"] = MID_RUN
+    notes: list[str] = []
     builder = RecordingBuilder(
         output,
         tree,
         source,
-        started_at=datetime.fromtimestamp(start / 1e9, UTC),
+        started_at=wall_start(start // 1000, f"{source.file}: goal {goal.index}", notes),
         attachments=attachments,
         metadata=metadata,
         tick_gap_ns=tick_gap_ns,
     )
+    builder.warnings.extend(notes)
     try:
+        if began:
+            count = builder.begin_mid_run(began)
+            builder.warnings.append(f"goal {goal.index}: {MID_RUN} ({count} nodes not IDLE)")
         for entry, uid in goal.entries:
             builder.transition(entry.t_ns - start, uid, entry.status, entry.prev)
     except BaseException:

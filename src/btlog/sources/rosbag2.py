@@ -25,10 +25,13 @@ Message definitions. An MCAP bag stores each topic's definition (its Schema reco
 SQLite bag written by ROS 2 Jazzy or later stores them in ``message_definitions``; both
 are used. Older SQLite bags (Humble's default storage) store only each topic's type
 name: the definitions btlog ships (``btlog/sources/ros2msg``, ``shipped_definitions``)
-and those the caller passes (``extra``) are tried in turn, and a topic is decoded by the
-first that reads its first ``PROBE`` messages *exactly*: every message decodes and,
-encoded again, gives back its bytes (a wrong layout often decodes into garbage without
-an error, so decoding alone proves nothing). A bag's own definition is used as it is.
+and those the caller passes (``extra``) are candidates, and a topic is decoded by one
+that reads its messages *exactly*: each decodes and, encoded again, gives back its
+bytes (a wrong layout often decodes into garbage without an error, so decoding alone
+proves nothing). A SQLite topic's messages are checked before it is read, until one
+candidate is left; when several read them all (a field whose bytes are all alignment
+padding, such as Nav2's ``uid`` after some names), the one with the fewest fields. A
+bag's own definition is used as it is.
 
 Damage is told, never hidden: an MCAP bag is walked by ``btlog.record.walk``, as btlog's
 own recordings are (a damaged chunk is skipped with a warning naming the file and the
@@ -63,7 +66,7 @@ from btlog.sources.builder import SourceError
 MCAP_MAGIC = b"\x89MCAP0\r\n"
 SQLITE_MAGIC = b"SQLite format 3\x00"
 ZSTD_MAGIC = b"\x28\xb5\x2f\xfd"
-#: Messages of a topic a shipped definition must read exactly to be chosen.
+#: A topic none of whose first PROBE messages any known layout reads exactly is refused.
 PROBE = 16
 #: Bytes a ``.zstd`` storage file may decompress to, per byte of it (a bomb is refused).
 MAX_ZSTD_RATIO = 64
@@ -133,6 +136,13 @@ def shipped_definition(type_name: str, release: str) -> Definition:
     raise LookupError(f"btlog ships no definition of {type_name} for {release}")
 
 
+def _is_field(line: str) -> bool:
+    """Whether a line of a ``ros2msg`` definition declares a field (not a comment, a
+    constant, a dependency's header or the separator)."""
+    text = line.split("#", 1)[0].strip()
+    return bool(text) and "=" not in text and not text.startswith("MSG:")
+
+
 class _Codec:
     """Decodes one topic's messages with one definition; ``exact`` checks a message
     reads back to its own bytes."""
@@ -148,6 +158,7 @@ class _Codec:
         except Exception as error:  # a hostile definition may break the parser anywhere
             raise _DefinitionError(f"{type(error).__name__}: {error}") from None
         self.definition = definition
+        self.fields = sum(1 for line in definition.text.splitlines() if _is_field(line))
 
     def exact(self, data: bytes) -> bool:
         """True when ``data`` decodes and encodes back to itself (up to the final
@@ -182,6 +193,17 @@ class _TopicDecoder:
         self.decoded = self.failed = 0
         if not self.codecs:
             raise SourceError(f"{path}: no readable definition of {topic.type} ({topic.name})")
+        self.codecs.sort(key=lambda codec: codec.fields)
+
+    def settle(self, messages: Iterable[bytes]) -> None:
+        """Keep the candidates that read each of ``messages`` exactly (a message none
+        reads is damaged and tells nothing), until one is left."""
+        for data in messages:
+            if len(self.codecs) == 1:
+                return
+            with contextlib.suppress(zstandard.ZstdError, ValueError):
+                exact = [codec for codec in self.codecs if codec.exact(_uncompressed(data))]
+                self.codecs = exact or self.codecs
 
     @property
     def definition(self) -> Definition:
@@ -545,6 +567,9 @@ def _sqlite_messages(
             decoder = bag._decoder(topic, own.get(topic.type), strict=wanted is not None)
             if decoder is not None:
                 decoders[topic_id] = decoder
+                with contextlib.suppress(sqlite3.Error):
+                    query = "SELECT data FROM messages WHERE topic_id = ? ORDER BY id"
+                    decoder.settle(row[0] for row in con.execute(query, (topic_id,)))
         chosen = {i: t for i, t in chosen.items() if i in decoders}
         if not chosen:
             return

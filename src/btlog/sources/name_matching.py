@@ -1,0 +1,440 @@
+"""Match a log whose entries name their nodes (no uids) to the tree's nodes.
+
+Nav2 releases before Jazzy log ``node_name`` only, and names are not unique: Nav2's
+default trees give a RecoveryNode the name of the action it recovers
+("ComputePathToPose", "FollowPath"), and BT.CPP names every unnamed node by its type
+("Sequence"). Each entry of a shared name is given to one of the nodes of that name so
+that the log is a sequence of transitions BehaviorTree.CPP could have made:
+
+- **chain**: an entry's previous status is the node's status (what the node's earlier
+  entries left; a node's first entry tells the state the log began in);
+- **structure**, as BT.CPP changes statuses: a node leaves IDLE or completes only
+  within its parent's tick, so when it does while its parent is not RUNNING (IDLE: a
+  PipelineSequence sets its own status after ticking its children, while most controls
+  set RUNNING first; or completed: ticked again), the parent changes status before any
+  node outside the parent's subtree changes, and in the same tick (``Entry.group``: Nav2
+  publishes a tick's entries in one message); and a node completes or resets to IDLE
+  once its children are IDLE (BT.CPP resets a node's children before the node
+  completes or halts; ``LEAVES_CHILDREN`` are the exceptions); a Sequence, Fallback,
+  Switch... (``ONE_RUNNING``: all but the parallel controls) has one child RUNNING at
+  a time;
+- **order**, weaker: a Sequence, Fallback, Parallel... (``IN_ORDER``) ticks its
+  children from the first and leaves their results in place, so a child of one leaves
+  IDLE once its previous sibling has the result that moves the control on (SUCCESS in
+  a Sequence, FAILURE in a Fallback), and an IfThenElse's branch once its condition
+  chose it (not so a Switch, which runs one case, a RecoveryNode, which resets its
+  first child before its recovery runs, or a control with a child BT.CPP 4 may skip).
+
+Every reading is scored by its violations: chain first, then structure, then order,
+then the nodes it assumes were not IDLE when the log began (fewest first: a log that
+starts with the tree is read so). The best reading is found by dynamic programming over
+the entries (``_Matcher``), in time linear in the log. Two readings with the same best
+score are truly ambiguous, unless they make the same transitions in each tick in
+another order (then BT.CPP's order is kept: the earlier entry to the node first in the
+tree); otherwise the match is refused, naming the names whose entries could not be
+told apart. More than ``MAX_READINGS`` readings alive at once are refused too.
+
+Tested on Nav2's default trees exported as Humble bags (exact), and on random BT.CPP 4
+trees whose every node is unnamed, the worst case (``tests/test_name_matching.py``): of
+300, 195 read exactly, 7 with two same-tick transitions in another order, 98 refused,
+none wrong.
+"""
+
+from __future__ import annotations
+
+import itertools
+from collections.abc import Sequence
+from dataclasses import dataclass
+
+from btlog.sources.builder import SourceError
+from btlog.status import FAILURE, IDLE, RUNNING, SUCCESS, Status
+from btlog.tree.model import Node, Tree
+
+#: A node of a shared name whose status the log has not told yet.
+UNKNOWN = -1
+#: Weights of the score's parts: chain violations, then structure, then order, then
+#: assumptions about the start.
+_CHAIN, _STRUCTURE, _ORDER, _ASSUMED = 1 << 96, 1 << 64, 1 << 32, 1
+#: Controls (BT.CPP 3 and 4, Nav2) that tick their children from the first, and the
+#: result the previous child must have before the next one is ticked.
+_AFTER_SUCCESS = (int(SUCCESS),)
+_AFTER_FAILURE = (int(FAILURE),)
+_AFTER_ANY = (int(RUNNING), int(SUCCESS), int(FAILURE))
+IN_ORDER: dict[str, tuple[int, ...]] = {
+    "Sequence": _AFTER_SUCCESS,
+    "SequenceWithMemory": _AFTER_SUCCESS,
+    "SequenceStar": _AFTER_SUCCESS,
+    "ReactiveSequence": _AFTER_SUCCESS,
+    "Fallback": _AFTER_FAILURE,
+    "ReactiveFallback": _AFTER_FAILURE,
+    "Parallel": _AFTER_ANY,
+    "ParallelAll": _AFTER_ANY,
+    "PipelineSequence": (int(RUNNING), int(SUCCESS)),
+}
+#: Controls whose first child decides the branch: its result before each other child.
+BRANCHES = {
+    "IfThenElse": (_AFTER_SUCCESS, _AFTER_FAILURE),
+    "WhileDoElse": (_AFTER_SUCCESS, _AFTER_FAILURE),
+}
+#: Controls (BT.CPP 3 and 4, Nav2) that never have two children RUNNING at once.
+ONE_RUNNING = frozenset(
+    {
+        *IN_ORDER.keys() - {"Parallel", "ParallelAll", "PipelineSequence"},
+        *BRANCHES,
+        *(f"Switch{n}" for n in range(2, 7)),
+        "RecoveryNode",
+        "RoundRobin",
+    }
+)
+#: Nodes that may complete with a child not IDLE: BT.CPP 4's IfThenElse leaves its
+#: failed condition so when it has no else branch, a SequenceWithMemory its succeeded
+#: children when it fails; Nav2's RateController resets its child after it completes.
+LEAVES_CHILDREN = frozenset({"IfThenElse", "SequenceWithMemory", "SequenceStar", "RateController"})
+#: A reading more structure violations than this behind the best one is dropped.
+MARGIN = 2
+#: At most this many readings are followed at once; more, and the log is refused.
+MAX_READINGS = 1024
+
+
+@dataclass(frozen=True)
+class Entry:
+    """What a name-only log says: a node's name, its previous and new status, and the
+    tick (or message) it came in, ``group``."""
+
+    name: str
+    prev: Status
+    status: Status
+    group: int = 0
+
+
+def _may_skip(node: Node) -> bool:
+    """Whether BT.CPP 4 may skip the node (a ``_skipIf``/``_while`` precondition, a
+    Precondition decorator): a skipped child leaves no entry, so its control's order
+    tells nothing."""
+    return node.type == "Precondition" or not {"_skipIf", "_while"}.isdisjoint(node.attributes)
+
+
+class _Path:
+    """A reading, as a linked list of the choices made for entries of shared names."""
+
+    __slots__ = ("index", "tail", "uid")
+
+    def __init__(self, index: int, uid: int, tail: _Path | None) -> None:
+        self.index, self.uid, self.tail = index, uid, tail
+
+
+def _differ(a: _Path | None, b: _Path | None) -> list[tuple[int, int, int]]:
+    """Where two readings of the same entries give an entry to different nodes:
+    ``(entry index, node in a, node in b)``."""
+    found = []
+    while a is not b and a is not None and b is not None:
+        if a.uid != b.uid:
+            found.append((a.index, a.uid, b.uid))
+        a, b = a.tail, b.tail
+    return found
+
+
+def match_names(entries: Sequence[Entry], tree: Tree, where: str) -> list[int]:
+    """The uid of each entry (see the module docstring); ``SourceError`` naming the file
+    when a name is not in the tree, or when shared names cannot be told apart."""
+    groups: dict[str, list[int]] = {}
+    for node in tree:
+        groups.setdefault(node.description, []).append(node.uid)
+    for entry in entries:
+        if entry.name not in groups:
+            raise SourceError(
+                f"{where}: the log names node {entry.name!r}, which the tree does not have"
+            )
+    shared = {e.name for e in entries if len(groups[e.name]) > 1}
+    if not shared:
+        return [groups[e.name][0] for e in entries]
+    return _Matcher(entries, tree, groups, shared, where).run()
+
+
+class _Matcher:
+    """The dynamic programme of ``match_names``. A reading's state: the statuses of the
+    nodes of shared names (``UNKNOWN`` until their first entry), and a bit set of those
+    nodes and their parents (the *watched* nodes) that *owe* a change (a child left IDLE
+    or completed while they were not RUNNING: they are being ticked, so they change
+    before any node outside their subtree does, within the tick). Readings that reach
+    the same state are merged, keeping the best (``_merge``)."""
+
+    def __init__(
+        self,
+        entries: Sequence[Entry],
+        tree: Tree,
+        groups: dict[str, list[int]],
+        shared: set[str],
+        where: str,
+    ) -> None:
+        self.entries, self.groups, self.where = entries, groups, where
+        self.parent = {n.uid: (n.parent.uid if n.parent else 0) for n in tree}
+        self.children = {n.uid: [c.uid for c in n.children] for n in tree}
+        self.leaves_children = {n.uid for n in tree if n.type in LEAVES_CHILDREN}
+        self.exclusive = {n.uid for n in tree if n.type in ONE_RUNNING}
+        #: the sibling that must have run before a node, and the results it may have had
+        self.earlier: dict[int, tuple[int, tuple[int, ...]]] = {}
+        order = list(tree)
+        skips: dict[int, bool] = {}  # a node BT.CPP may skip in the subtree
+        for node in reversed(order):
+            skips[node.uid] = _may_skip(node) or any(skips[c.uid] for c in node.children)
+        for node in order:
+            kids = self.children[node.uid]
+            if skips[node.uid]:
+                continue
+            if node.type in IN_ORDER:
+                for before, after in itertools.pairwise(kids):
+                    self.earlier[after] = (before, IN_ORDER[node.type])
+            elif node.type in BRANCHES:
+                for branch, results in zip(kids[1:], BRANCHES[node.type], strict=False):
+                    self.earlier[branch] = (kids[0], results)
+        # the subtree of a node: the pre-order positions from its own to its last descendant
+        self.first: dict[int, int] = {}
+        self.last: dict[int, int] = {}
+        for position, node in enumerate(order):
+            self.first[node.uid] = position
+        for node in reversed(order):
+            kids = self.children[node.uid]
+            self.last[node.uid] = self.last[kids[-1]] if kids else self.first[node.uid]
+        ambiguous = sorted(uid for name in shared for uid in groups[name])
+        self.a_index = {uid: i for i, uid in enumerate(ambiguous)}
+        watched = sorted(set(ambiguous) | {self.parent[u] for u in ambiguous} - {0})
+        self.bit = {uid: 1 << i for i, uid in enumerate(watched)}
+        self.watched = watched
+        # nodes of unique names: their status is the same in every reading; the log
+        # says what it was at its start
+        self.initial: dict[int, int] = {n.uid: int(IDLE) for n in tree}
+        seen: set[int] = set()
+        for entry in entries:
+            (uid, *more) = groups[entry.name]
+            if not more and uid not in seen:
+                seen.add(uid)
+                self.initial[uid] = int(entry.prev)
+        self.status = dict(self.initial)
+
+    # -- one step -------------------------------------------------------------------------
+    def _of(self, uid: int, statuses: Sequence[int]) -> int:
+        at = self.a_index.get(uid)
+        return self.status[uid] if at is None else statuses[at]
+
+    def _inside(self, uid: int, ancestor: int) -> bool:
+        return self.first[ancestor] <= self.first[uid] <= self.last[ancestor]
+
+    def _pin(self, statuses: list[int], uid: int, status: int) -> int:
+        """Settle an UNKNOWN node's status since the start (in place): the cost of the
+        assumption, and, for a node not IDLE, its UNKNOWN ancestors' RUNNING (BT.CPP
+        ticks a node only through running ancestors) counted alike."""
+        cost = 0
+        while True:
+            at = self.a_index.get(uid)
+            if at is None or statuses[at] != UNKNOWN:
+                return cost
+            statuses[at] = status
+            if status == IDLE:
+                return cost
+            cost += _ASSUMED
+            uid, status = self.parent[uid], int(RUNNING)
+
+    def _apply(
+        self, uid: int, entry: Entry, state: tuple[tuple[int, ...], int]
+    ) -> list[tuple[int, tuple[tuple[int, ...], int]]]:
+        """The cost of giving ``entry`` to ``uid`` in a reading, and its state after:
+        one outcome, or two when the status of an UNKNOWN parent decides (RUNNING since
+        the start, or IDLE and owing a change)."""
+        statuses, owing = list(state[0]), state[1]
+        prev, new = int(entry.prev), int(entry.status)
+        cost = 0
+        now = self._of(uid, statuses)
+        if now == UNKNOWN:
+            cost += self._pin(statuses, uid, prev)
+        elif now != prev:
+            cost += _CHAIN
+        kids = self.children[uid]
+        if new != RUNNING and kids and uid not in self.leaves_children:
+            for child in kids:
+                status = self._of(child, statuses)
+                if status == UNKNOWN:  # it completes or resets: its children are IDLE
+                    self._pin(statuses, child, int(IDLE))
+                elif status > IDLE:
+                    cost += _STRUCTURE
+                    break
+        parent_uid = self.parent[uid]
+        if (
+            new == RUNNING
+            and prev != RUNNING
+            and parent_uid in self.exclusive
+            and any(self._of(c, statuses) == RUNNING for c in self.children[parent_uid])
+        ):
+            cost += _STRUCTURE
+        if prev == IDLE and new != IDLE:
+            earlier = self.earlier.get(uid)
+            if earlier is not None and self._of(earlier[0], statuses) not in (
+                UNKNOWN,
+                *earlier[1],
+            ):
+                cost += _ORDER
+        if owing:  # a node that owes a change and is left for one outside its subtree
+            for watched in self.watched:
+                mask = self.bit[watched]
+                if owing & mask and not self._inside(uid, watched):
+                    cost += _STRUCTURE
+                    owing &= ~mask
+        at = self.a_index.get(uid)
+        if at is not None:
+            statuses[at] = new
+        owing &= ~self.bit.get(uid, 0)
+        up = self.bit.get(parent_uid, 0)
+        # A reset is not counted: BT.CPP resets a child left behind (``LEAVES_CHILDREN``)
+        # when it halts the tree, whatever its parent's status.
+        if not up or new == IDLE:
+            return [(cost, (tuple(statuses), owing))]
+        parent = self._of(parent_uid, statuses)
+        if parent == UNKNOWN:  # running since the start, or starting now (owing)
+            running = list(statuses)
+            assumed = self._pin(running, parent_uid, int(RUNNING))
+            self._pin(statuses, parent_uid, int(IDLE))
+            return [
+                (cost + assumed, (tuple(running), owing)),
+                (cost, (tuple(statuses), owing | up)),
+            ]
+        # IDLE: ticking its first child; completed: ticked again
+        if parent != RUNNING:
+            owing |= up
+        return [(cost, (tuple(statuses), owing))]
+
+    def _prune(
+        self, readings: dict[tuple, tuple[int, _Path | None, frozenset[int]]], entry: Entry
+    ) -> dict[tuple, tuple[int, _Path | None, frozenset[int]]]:
+        """The readings worth following: those at most ``MARGIN`` structure violations
+        behind the best (and none with more chain violations). More than
+        ``MAX_READINGS`` left: the log is refused (the best could not be told from the
+        others in bounded time)."""
+        best = min(cost for cost, _path, _unclear in readings.values())
+        bound = best - best % _STRUCTURE + (MARGIN + 1) * _STRUCTURE
+        kept = {k: v for k, v in readings.items() if v[0] < bound}
+        if len(kept) > MAX_READINGS:
+            raise SourceError(
+                f"{self.where}: the log has no uids, and it fits more than {MAX_READINGS} "
+                f"readings of its shared names (at an entry of {entry.name!r}); name the "
+                "nodes apart in the tree, or record with uids (Nav2 Jazzy and later)"
+            )
+        return kept
+
+    def _doubts(self, a: _Path | None, b: _Path | None) -> tuple[set[int], bool]:
+        """The entries two equally good readings disagree on, and whether ``a`` is the
+        one to keep. Two readings that make the same transitions in each tick, in another
+        order, leave no doubt (a control and its child both leaving IDLE: which came
+        first changes no state between ticks); the kept one gives the earlier entry to
+        the node first in the tree (BT.CPP's controls set RUNNING before they tick a
+        child)."""
+        differ = _differ(a, b)
+        if not differ:
+            return set(), False
+        group = self.entries
+        mine = sorted((group[i].group, x, group[i].prev, group[i].status) for i, x, _ in differ)
+        theirs = sorted((group[i].group, y, group[i].prev, group[i].status) for i, _, y in differ)
+        if mine != theirs:
+            return {i for i, _x, _y in differ}, False
+        _first, x, y = differ[-1]
+        return set(), self.first[x] < self.first[y]
+
+    def run(self) -> list[int]:
+        """The uid of each entry; ``SourceError`` when the best reading is not unique.
+        A log whose nodes of unique names all start IDLE is first read as starting
+        with the tree (every node IDLE); if no reading of it then fits the chain, or the
+        log begins mid-run, the nodes of shared names start *unknown* (what their first
+        entry says, each non-IDLE start counted)."""
+        readings = None
+        if all(status == IDLE for status in self.initial.values()):
+            readings = self._read(int(IDLE))
+            if min(cost for cost, _path, _unclear in readings.values()) >= _CHAIN:
+                readings = None
+        if readings is None:
+            readings = self._read(UNKNOWN)
+        best = min(cost for cost, _path, _unclear in readings.values())
+        ends = [(path, unclear) for cost, path, unclear in readings.values() if cost == best]
+        path, unclear = ends[0]
+        doubts = set(unclear)
+        for other, other_unclear in ends[1:]:
+            differ, better = self._doubts(other, path)
+            doubts |= other_unclear | differ
+            path = other if better else path
+        if doubts:
+            names = sorted({self.entries[i].name for i in doubts})
+            listed = ", ".join(repr(n) for n in names)
+            raise SourceError(
+                f"{self.where}: the log has no uids, and its entries named {listed} fit "
+                "several nodes of that name equally well (the tree's structure cannot "
+                "tell them apart)"
+            )
+        fixed = [self.groups[e.name][0] for e in self.entries]
+        while path is not None:
+            fixed[path.index] = path.uid
+            path = path.tail
+        return fixed
+
+    def _read(self, start: int) -> dict[tuple, tuple[int, _Path | None, frozenset[int]]]:
+        """The best readings of the log, the nodes of shared names starting ``start``."""
+        self.status = dict(self.initial)
+        statuses = [start] * len(self.a_index)
+        assumed = 0
+        for uid, status in self.initial.items():  # running ancestors of unique names
+            if status != IDLE and uid not in self.a_index:
+                assumed += self._pin(statuses, self.parent[uid], int(RUNNING))
+        # state -> (cost, reading, entry indexes found ambiguous)
+        readings: dict[tuple, tuple[int, _Path | None, frozenset[int]]] = {
+            (tuple(statuses), 0): (assumed, None, frozenset())
+        }
+        group = self.entries[0].group if self.entries else 0
+        for index, entry in enumerate(self.entries):
+            if entry.group != group:  # a new tick: every change owed is a violation
+                group = entry.group
+                if any(owing for _statuses, owing in readings):
+                    readings = self._tick_ends(readings)
+            candidates = self.groups[entry.name]
+            if len(candidates) == 1:
+                uid = candidates[0]
+                watched = uid in self.bit or self.parent[uid] in self.bit
+                if not watched and not any(owing for _statuses, owing in readings):
+                    self.status[uid] = int(entry.status)
+                    continue
+            following: dict[tuple, tuple[int, _Path | None, frozenset[int]]] = {}
+            for state, (cost, path, unclear) in readings.items():
+                for uid in candidates:
+                    chosen = path if len(candidates) == 1 else _Path(index, uid, path)
+                    for step, after in self._apply(uid, entry, state):
+                        self._merge(following, after, cost + step, chosen, unclear)
+            if len(candidates) == 1:
+                self.status[candidates[0]] = int(entry.status)
+            readings = self._prune(following, entry)
+        if any(owing for _statuses, owing in readings):
+            readings = self._tick_ends(readings)
+        return readings
+
+    def _tick_ends(
+        self, readings: dict[tuple, tuple[int, _Path | None, frozenset[int]]]
+    ) -> dict[tuple, tuple[int, _Path | None, frozenset[int]]]:
+        """The readings once a tick is over: each change still owed is a violation."""
+        following: dict[tuple, tuple[int, _Path | None, frozenset[int]]] = {}
+        for (statuses, owing), (cost, path, unclear) in readings.items():
+            total = cost + owing.bit_count() * _STRUCTURE
+            self._merge(following, (statuses, 0), total, path, unclear)
+        return following
+
+    def _merge(
+        self,
+        readings: dict[tuple, tuple[int, _Path | None, frozenset[int]]],
+        state: tuple,
+        cost: int,
+        path: _Path | None,
+        unclear: frozenset[int],
+    ) -> None:
+        """Keep the better of two readings that reach the same state; two equally good
+        ones that differ are a doubt (``_doubts``) from then on."""
+        known = readings.get(state)
+        if known is None or cost < known[0]:
+            readings[state] = (cost, path, unclear)
+        elif cost == known[0] and known[1] is not path:
+            doubts, better = self._doubts(path, known[1])
+            both = frozenset(unclear | known[2] | doubts)
+            readings[state] = (cost, path if better else known[1], both)

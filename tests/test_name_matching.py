@@ -1,0 +1,187 @@
+"""Logs whose entries name their nodes, without uids (Nav2 before Jazzy), matched to the
+tree by its structure (``btlog.sources.name_matching``): Nav2's default trees, whose
+RecoveryNodes share their actions' names, import exactly; a log that begins mid-run
+imports with its first state inferred; what no structure can tell apart is refused,
+naming the names.
+
+The bags are what Nav2 Humble records: SQLite storage, no message definitions, one
+``/behavior_tree_log`` message per tick while the tree runs
+(``tests/test_nav2_rosbag.nav2_messages``)."""
+
+from __future__ import annotations
+
+import json
+from collections import Counter
+from pathlib import Path
+
+import pytest
+from hypothesis import HealthCheck, assume, given, settings
+from hypothesis import strategies as st
+
+from btlog.executor.behavior import NodeExecutionError
+from btlog.record.reader import Recording, open_recording
+from btlog.runner import RunConfig, execute
+from btlog.sources.builder import SourceError
+from btlog.sources.name_matching import Entry, match_names
+from btlog.state import StateProjection
+from btlog.status import IDLE
+from tests.cli_support import assert_bad_input, btlog
+from tests.oracle.random_trees import generate
+from tests.rosbag2_support import HUMBLE, NAV2_LOG, write_sqlite_bag
+from tests.test_nav2_rosbag import NAV2, nav2_messages, record, transitions
+
+DEFINITIONS = {NAV2_LOG: HUMBLE}
+
+
+def source_of(recording: Recording) -> dict:
+    source = recording.metadata["source"]
+    return json.loads(source) if isinstance(source, str) else source
+
+
+@pytest.mark.parametrize("tree", ["navigate_to_pose.xml", "navigate_through_poses.xml"])
+def test_nav2_default_trees_import_exactly_from_a_humble_bag(tmp_path: Path, tree: str) -> None:
+    """Nav2's trees name a RecoveryNode after its action ("FollowPath") and leave several
+    Sequences unnamed; the structure tells every entry's node. FollowPath fails once, so
+    its local recovery runs, in each of two goals."""
+    path = NAV2 / tree
+    runs = [record(tmp_path, f"run{i}", path) for i in range(2)]
+    write_sqlite_bag(tmp_path / "bag", nav2_messages(runs, uids=False), DEFINITIONS)
+    result = btlog("import", str(tmp_path / "bag"), "--tree", str(path), "-o", "nav.mcap",
+                   cwd=tmp_path)  # fmt: skip
+    assert result.returncode == 0, result.stderr
+    first = open_recording(tmp_path / "nav-goal1.mcap")
+    assert transitions(first) == transitions(runs[0])
+    assert source_of(first)["matched_by"] == "name"
+    second = transitions(open_recording(tmp_path / "nav-goal2.mcap"))  # its end never sent
+    assert second == transitions(runs[1])[: len(second)] and len(second) > 10
+
+
+AMBIGUOUS = (
+    '<root BTCPP_format="4"><BehaviorTree ID="T"><Parallel success_count="2">'
+    '<Action ID="MoveArm" name="move"/><Action ID="MoveBase" name="move"/>'
+    "</Parallel></BehaviorTree></root>"
+)
+
+
+def test_what_no_structure_can_tell_apart_is_refused_naming_the_names(tmp_path: Path) -> None:
+    """Two nodes named "move" under a Parallel both start, then one succeeds after 1 s and
+    the other after 2 s: which finished first, no log without uids can say."""
+    (tmp_path / "t.xml").write_text(AMBIGUOUS)
+
+    def tick(t_s: int, changes: str) -> tuple:
+        stamp = {"sec": t_s, "nanosec": 0}
+        log = []
+        for change in changes.split(", "):
+            name, prev, new = change.split()
+            entry = {"node_name": name, "previous_status": prev, "current_status": new}
+            log.append({"timestamp": stamp, **entry})
+        return ("/behavior_tree_log", NAV2_LOG, t_s * 10**9, {"timestamp": stamp, "event_log": log})
+
+    messages = [
+        tick(1, "move IDLE RUNNING, move IDLE RUNNING, Parallel IDLE RUNNING"),
+        tick(2, "move RUNNING SUCCESS"),
+        tick(
+            3,
+            "move RUNNING SUCCESS, move SUCCESS IDLE, move SUCCESS IDLE, Parallel RUNNING SUCCESS",
+        ),
+    ]
+    write_sqlite_bag(tmp_path / "bag", messages, DEFINITIONS)
+    assert_bad_input(
+        btlog("import", str(tmp_path / "bag"), "--tree", "t.xml", cwd=tmp_path),
+        str(tmp_path / "bag"),
+        "no uids",
+        "'move'",
+        "cannot tell them apart",
+    )
+
+
+def test_a_log_that_begins_mid_run_imports_with_its_first_state_inferred(tmp_path: Path) -> None:
+    """The recorder started 3 ticks after the goal: the state before the bag's first
+    entry is inferred (each node's previous status in its first entry, RUNNING for their
+    ancestors), recorded as tick 1, said in a warning and by ``explain``; the rest is
+    the run's own."""
+    path = NAV2 / "navigate_to_pose.xml"
+    run = record(tmp_path, "run", path)
+    messages = nav2_messages([run], uids=False)
+    late = 3
+    write_sqlite_bag(tmp_path / "bag", messages[late:], DEFINITIONS)
+    result = btlog("import", str(tmp_path / "bag"), "--tree", str(path), "-o", "late.mcap",
+                   cwd=tmp_path)  # fmt: skip
+    assert result.returncode == 0, result.stderr
+    assert "goal 1: the log begins mid-run" in result.stderr
+    imported = open_recording(tmp_path / "late.mcap")
+    assert "inferred" in imported.metadata["mid_run"]
+    inferred = [e for e in imported.transitions if e.tick == 1]
+    assert {e.prev.name for e in inferred} == {"IDLE"} and len(inferred) == 5
+    skipped = sum(len(m[3]["event_log"]) for m in messages[:late])
+    rest = [e[1:] for e in transitions(imported)[len(inferred) :]]
+    assert rest == [e[1:] for e in transitions(run)[skipped : skipped + len(rest)]]
+    # the inferred state is the run's own at the bag's first entry
+    state = StateProjection(imported.tree)
+    for event in inferred:
+        state.on_status(event.seq, event.t_ns, event.tick, event.uid, event.prev, event.status)
+    truth = StateProjection(run.tree)
+    for event in run.transitions[:skipped]:
+        truth.on_status(event.seq, event.t_ns, event.tick, event.uid, event.prev, event.status)
+
+    def active(projection: StateProjection) -> dict:
+        return {uid: s for uid, s in projection.state.status.items() if s is not IDLE}
+
+    # what the bag tells is the truth (the selectors that succeeded before it began are
+    # named by no entry of it: they stay IDLE)
+    assert active(state).items() <= active(truth).items()
+    named = {e.uid for e in imported.transitions if e.tick > 1}
+    assert {u: s for u, s in active(truth).items() if u in named} == {
+        u: s for u, s in active(state).items() if u in named
+    }
+    story = btlog("explain", str(tmp_path / "late.mcap"))
+    assert "Note: the log begins mid-run" in story.stdout
+
+
+def _anonymous_run(seed: int, folder: Path) -> Recording:
+    case = generate(seed)
+    tree = folder / f"t{seed}.xml"
+    tree.write_text(case.xml)
+    config = RunConfig(str(tree), outcomes=case.outcomes, max_ticks=case.max_ticks)
+    try:
+        recorded = execute(config, folder / f"r{seed}.mcap")
+    except NodeExecutionError:  # a tree BT.CPP refuses too
+        assume(False)
+    run = open_recording(recorded.path)
+    assume(run.transitions)
+    return run
+
+
+@settings(
+    max_examples=12,
+    deadline=None,
+    derandomize=True,
+    database=None,
+    suppress_health_check=[HealthCheck.too_slow, HealthCheck.function_scoped_fixture],
+)
+@given(seed=st.integers(0, 100_000), late=st.sampled_from([0, 3]))
+def test_anonymous_random_trees_are_matched_or_refused_never_misread(tmp_path, seed, late):
+    """The worst case: random BT.CPP 4 trees whose every node is unnamed (BT.CPP logs
+    its type), from the start or from a later tick. Each reading is the truth, or the
+    truth with two same-tick transitions in another order, or a refusal."""
+    run = _anonymous_run(seed, tmp_path)
+    for node in run.tree:
+        node.name = node.type
+    ticks = sorted({e.tick for e in run.transitions})
+    changes = [e for e in run.transitions if e.tick >= ticks[min(late, len(ticks) - 1)]]
+    types = {node.uid: node.type for node in run.tree}
+    entries = [Entry(types[e.uid], e.prev, e.status, e.tick) for e in changes]
+    truth = [e.uid for e in changes]
+    try:
+        read = match_names(entries, run.tree, "log")
+    except SourceError as error:
+        assert "no uids" in str(error)
+        return
+    if read != truth:
+
+        def by_tick(uids: list[int]) -> Counter:
+            return Counter(
+                (e.group, u, e.prev, e.status) for e, u in zip(entries, uids, strict=True)
+            )
+
+        assert by_tick(read) == by_tick(truth)
