@@ -24,8 +24,8 @@ import pytest
 
 from btlog.events import StatusChange
 from btlog.record.reader import open_recording
+from btlog.sources.attach import AttachHooks, AttachOptions, AttachResult, attach
 from btlog.sources.builder import RecordingBuilder
-from btlog.sources.groot2 import AttachHooks, AttachOptions, AttachResult, attach
 from tests.cli_support import ROOT, assert_bad_input, btlog
 from tests.oracle.random_trees import generate
 from tests.oracle.runner import have_behaviortreepy, run_oracle, tick_boundaries

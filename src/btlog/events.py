@@ -8,7 +8,10 @@ stamped with ``t_ns`` since the run started and the ``tick`` they happened in:
 - ``BlackboardWrite``: an entry was written (or removed: ``type == "unset"``) by a node;
 - ``TreeMutation``: the tree itself changed (a subtree inserted while running).
 
-``TickRecord`` summarises one root tick. Everything else — the state at a moment, the
+``TickRecord`` summarises one root tick. A ``Gap`` — a time a source gave no data
+(``btlog attach``'s publisher fell silent or restarted, its buffer overflowed) — is kept
+as a write of the scope ``GAP_SCOPE``, so it is stored, read, replayed and shown with the
+events around it. Everything else — the state at a moment, the
 read model in DuckDB, the answers to questions — is a projection folded from these.
 
 The executor delivers events to a ``Subscriber`` as positional fields (no object per
@@ -78,6 +81,35 @@ class TreeMutation(NamedTuple):
     def inserted_root_uid(self) -> int:
         """The uid of the inserted subtree's root."""
         return self.nodes[0]["uid"]
+
+
+#: The scope of the writes that mark gaps in a recording: key ``gap N``, value a
+#: ``Gap.to_json()``. A later write of the same key extends that gap.
+GAP_SCOPE = "btlog.gaps"
+
+
+class Gap(NamedTuple):
+    """No data from ``from_ns`` to ``to_ns`` (times since the start), and ``why``."""
+
+    from_ns: int
+    to_ns: int
+    why: str
+
+    def to_json(self) -> dict[str, Any]:
+        """The value of its write."""
+        return {"from_ns": self.from_ns, "to_ns": self.to_ns, "why": self.why}
+
+
+def gaps_in(entries: dict[str, Any]) -> list[Gap]:
+    """The gaps among the entries of ``GAP_SCOPE`` (a state's blackboard), in time order;
+    entries that are not gaps are left out."""
+    found = []
+    for value in entries.values():
+        try:
+            found.append(Gap(int(value["from_ns"]), int(value["to_ns"]), str(value["why"])))
+        except (TypeError, KeyError, ValueError):
+            continue
+    return sorted(found)
 
 
 class TickRecord(NamedTuple):

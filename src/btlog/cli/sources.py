@@ -54,6 +54,21 @@ def add_parsers(commands: argparse._SubParsersAction) -> None:
     attach.add_argument(
         "--poll", metavar="S", type=float, default=0.01, help="seconds between polls (0.01)"
     )
+    attach.add_argument(
+        "--timeout",
+        metavar="S",
+        type=float,
+        default=3.0,
+        help="seconds to wait for each reply before the publisher counts as silent (3)",
+    )
+    attach.add_argument(
+        "--reconnect",
+        metavar="S",
+        type=float,
+        default=30.0,
+        help="when the publisher falls silent or restarts, try to reconnect for S seconds "
+        "(30; 0: end the recording at once); the time without data is marked as a gap",
+    )
     _add_model_and_gap(attach)
 
     export = commands.add_parser(
@@ -216,17 +231,27 @@ def attach(args: Namespace) -> int:
     """``btlog attach tcp://HOST:PORT -o OUT``: record until --duration or Ctrl-C."""
     from btlog.explain.questions import Answer
     from btlog.live_questions import LiveQuestion
+    from btlog.sources.attach import AttachOptions
+    from btlog.sources.attach import attach as record
     from btlog.sources.builder import RecordingBuilder
-    from btlog.sources.groot2 import AttachOptions
-    from btlog.sources.groot2 import attach as record
     from btlog.sources.live import LiveAnswers
 
     if args.duration is not None and args.duration <= 0:
         raise ValueError(f"--duration {args.duration}: must be > 0")
-    if not args.poll > 0:
-        raise ValueError(f"--poll {args.poll}: must be > 0")
+    for flag, value in (("--poll", args.poll), ("--timeout", args.timeout)):
+        if not 0 < value <= 3600:
+            raise ValueError(f"{flag} {value}: must be > 0 and at most 3600 seconds")
+    if not 0 <= args.reconnect < float("inf"):
+        raise ValueError(f"--reconnect {args.reconnect}: must be >= 0 seconds")
     questions = [LiveQuestion.parse(q) for q in args.ask]
-    options = AttachOptions(args.duration, args.poll, args.blackboard, tick_gap_ns=_gap_ns(args))
+    options = AttachOptions(
+        args.duration,
+        args.poll,
+        args.blackboard,
+        timeout=args.timeout,
+        tick_gap_ns=_gap_ns(args),
+        reconnect=args.reconnect,
+    )
 
     def printed(question: LiveQuestion, result: Answer) -> None:
         print(f"[{safe(question.when)}] {safe(question.question)}", flush=True)

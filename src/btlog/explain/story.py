@@ -8,8 +8,10 @@ own line, or counted by result when there are many; then each failure **episode*
 order — when, what Q6 said about it, and how it was handled (retried, attempt k of n;
 fell back to another child; or propagated up to the goal); then each **subgoal**
 (``btlog.explain.hierarchy.subgoals``) with its result, duration and attempts in the
-last run of the goal. A pure function of (tree, state, history) like the answers, built
-from history queries only.
+last run of the goal. The **gaps** in the data come first when there are any (times a
+source gave no data: ``btlog attach``'s publisher fell silent or restarted; the writes
+of ``btlog.events.GAP_SCOPE`` in the state). A pure function of (tree, state, history)
+like the answers, built from history queries only.
 
 An *episode* is one execution node's real failure as the failure handlers above it
 (``btlog.explain.handlers``) saw it: each handler whose child failed because of it
@@ -28,6 +30,7 @@ from __future__ import annotations
 from collections.abc import Iterator
 from dataclasses import dataclass, field
 
+from btlog.events import GAP_SCOPE, Gap, gaps_in
 from btlog.explain.causes import (
     actions_below,
     activation_start,
@@ -157,6 +160,7 @@ class Story:
     runs: list[GoalRun] = field(default_factory=list)
     guards: int = 0
     examined_all: bool = True
+    gaps: list[Gap] = field(default_factory=list)
 
     def to_json(self) -> dict:
         """JSON-ready form (``btlog explain REC --json``)."""
@@ -173,6 +177,7 @@ class Story:
             "goal_runs": [r.to_json() for r in self.runs],
             "episodes": [e.to_json() for e in self.episodes],
             "subgoals": [s.to_json() for s in self.subgoals],
+            "gaps": [g.to_json() for g in self.gaps],
         }
 
     def lines(self) -> list[str]:
@@ -183,6 +188,13 @@ class Story:
         ]
         if self.why:
             out.append(self.why)
+        if self.gaps:
+            out.append(f"Gaps in the data: {len(self.gaps)}.")
+            for gap in self.gaps[:SCREEN]:
+                span = f"{seconds(gap.from_ns)} s to {seconds(gap.to_ns)} s"
+                out.append(f"  No data from {span}: {gap.why}.")
+            if len(self.gaps) > SCREEN:
+                out.append(f"  … and {len(self.gaps) - SCREEN} more.")
         if len(self.runs) > 1:
             out.append(f"The goal ran {len(self.runs)} times:")
             out += [f"  {line}" for line in _runs_told(self.runs)]
@@ -436,4 +448,5 @@ def story(tree: Tree, state: State, history: History) -> Story:
         runs=runs,
         guards=found.guards,
         examined_all=found.examined_all,
+        gaps=gaps_in(state.blackboard.get(GAP_SCOPE, {})),
     )

@@ -14,8 +14,8 @@ from collections.abc import Callable
 from btlog.explain.questions import Answer, answer
 from btlog.live_questions import LiveQuestion
 from btlog.replay.moments import SEQ, TICK, TIME
+from btlog.sources.attach import AttachHooks
 from btlog.sources.builder import RecordingBuilder
-from btlog.sources.groot2 import AttachHooks
 from btlog.state import StateProjection
 
 

@@ -68,6 +68,16 @@ class SidePanels {
       .filter(Boolean).join(" ");
     el("div", { class: "storyhead" }, box, outcome);
     if (story.why) el("div", {}, box, story.why);
+    const gaps = story.gaps || [];
+    if (gaps.length) el("div", { class: "muted" }, box, `Gaps in the data: ${gaps.length}`);
+    const gapList = el("ul", { class: "gaps" }, box);
+    for (const gap of gaps) {
+      const item = el("li", {}, gapList);
+      const link = el("a", { href: "#", class: "moment-link", "data-t-ns": gap.from_ns }, item,
+        `No data from ${seconds(gap.from_ns)} to ${seconds(gap.to_ns)}`);
+      link.addEventListener("click", (e) => { e.preventDefault(); this.pane.go({ t_ns: gap.from_ns }); });
+      el("div", { class: "muted" }, item, gap.why);
+    }
     const episodes = story.episodes || [];
     el("div", { class: "muted" }, box, episodes.length ? `Failures: ${episodes.length}` +
       (episodes.length === 1 ? "" : " (episodes told once)") : "No failures.");
