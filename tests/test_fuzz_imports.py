@@ -52,7 +52,7 @@ def _import(damage: Damage, suffix: str) -> tuple[Path, object]:
 
 
 @given(damage=damaged(BTLOG))
-@fuzz(examples=40, seconds=12)
+@fuzz(examples=25, seconds=8)
 def test_a_damaged_btlog_anywhere_is_imported_or_refused_in_one_line(damage: Damage) -> None:
     output, outcome = _import(damage, ".btlog")
     if outcome.code != 0:  # type: ignore[attr-defined]
@@ -60,7 +60,7 @@ def test_a_damaged_btlog_anywhere_is_imported_or_refused_in_one_line(damage: Dam
 
 
 @given(damage=damaged(BTLOG, start=LOG.start_offset))
-@fuzz(examples=60, seconds=15)
+@fuzz(examples=40, seconds=10)
 def test_damaged_btlog_records_keep_every_intact_record(damage: Damage) -> None:
     output, outcome = _import(damage, ".btlog")
     if outcome.code == 0:  # type: ignore[attr-defined]
@@ -71,7 +71,7 @@ def test_damaged_btlog_records_keep_every_intact_record(damage: Damage) -> None:
 
 
 @given(damage=damaged(SQLITE))
-@fuzz(examples=40, seconds=12)
+@fuzz(examples=25, seconds=8)
 def test_a_damaged_sqlite_log_is_imported_or_refused_in_one_line(damage: Damage) -> None:
     output, outcome = _import(damage, ".db3")
     assert output.exists() == (outcome.code == 0)  # type: ignore[attr-defined]
@@ -95,7 +95,7 @@ SQL_VALUES = (
         unique_by=lambda row: row[0],
     )
 )
-@fuzz(examples=50, seconds=12)
+@fuzz(examples=30, seconds=8)
 def test_sqlite_rows_of_any_values_are_imported_or_refused_in_one_line(rows: list) -> None:
     folder = Path(tempfile.mkdtemp(dir=_FOLDER))
     db = sqlite_log(folder / "rows.db3", LOG.xml, sorted(rows))

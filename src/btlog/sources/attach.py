@@ -316,7 +316,7 @@ class _Attachment:
         the gap. Raises ``_Ended`` when it gives up or the attach should end."""
         self.connected = False
         since = self.last_reply_ns
-        if error is not None and self.options.reconnect <= 0:
+        if self.options.reconnect <= 0:
             self._give_up(f"{_what(error)} (reconnecting is off)")
         deadline = time.monotonic() + self.options.reconnect
         delay, tries = (FIRST_RETRY if error is not None else 0.0), 0
@@ -366,7 +366,6 @@ class _Attachment:
         self.tree_id = self.client.tree_id
         self.offset_ns = now
         self.result.restarts += 1
-        self.entries.clear()
         builder = self.builder
         for uid in sorted(builder.tree.nodes, reverse=True):  # children before parents
             if builder.status_of(uid) != IDLE:

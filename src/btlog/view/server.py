@@ -1,28 +1,54 @@
 """``btlog view``'s web server: the page and its JSON, on 127.0.0.1 only, read-only.
 
-Standard library only (``http.server`` on a ``ThreadingHTTPServer``): GET requests for
-the page, its static files and the JSON of ``btlog.view.model``. Queries share one DuckDB
-connection, so they are serialised by a lock. Requests whose ``Host`` is not the loopback
-address are refused (a web page elsewhere cannot reach the viewer through DNS
+Standard library only: GET requests for the page, its static files and the JSON of
+``btlog.view.model``, answered by ``http.server``'s request handler. Queries share one
+DuckDB connection, so they are serialised by a lock. Requests whose ``Host`` is not the
+loopback address are refused (a web page elsewhere cannot reach the viewer through DNS
 rebinding); nothing the page asks can change a recording or its cache.
+
+Connections cannot exhaust it (``ViewerServer``): one thread accepts them and reads each
+request's head without blocking — at most ``HEAD_LIMIT`` bytes within ``REQUEST_TIMEOUT``
+seconds, else the connection is closed — and only a complete request goes to a pool of
+``WORKERS`` threads. At most ``MAX_PENDING`` connections wait for their head (past it the
+oldest is closed, so idle or half-sent connections never stop the viewer answering) and
+as many complete requests for a worker (past it a request is closed unanswered). A
+client that goes away mid-answer is forgotten quietly; nothing of the standard library
+is printed.
 """
 
 from __future__ import annotations
 
+import contextlib
+import io
 import json
+import selectors
+import socket
+import sys
 import threading
+import time
+from collections import OrderedDict
+from concurrent.futures import ThreadPoolExecutor
 from http import HTTPStatus
-from http.server import BaseHTTPRequestHandler, ThreadingHTTPServer
+from http.server import BaseHTTPRequestHandler
 from importlib import resources
 from typing import Any
 from urllib.parse import parse_qs, urlsplit
 
+from btlog.errors import one_line
 from btlog.replay.moments import Resolved
 from btlog.view.model import RunView, question_patterns, standard_questions
 from btlog.view.page import STATIC_FILES, page_html
 
 HOST = "127.0.0.1"
 _TYPES = {".js": "text/javascript", ".css": "text/css"}
+#: Threads answering complete requests (queries are serialised anyway).
+WORKERS = 4
+#: Seconds a connection has to send its request's head; and to take each part of an answer.
+REQUEST_TIMEOUT = 10.0
+#: The longest request head read (a GET has no body).
+HEAD_LIMIT = 64 * 1024
+#: Connections waiting for their head at once; past it the oldest is closed.
+MAX_PENDING = 1024
 
 
 class ViewerApp:
@@ -46,7 +72,8 @@ class ViewerApp:
         """Answer ``/api/...``; raises KeyError for unknown paths, ValueError for bad values."""
         parts = path.strip("/").split("/")
         if parts == ["api", "runs"]:
-            return self.runs_json()
+            with self.lock:  # every query of the one connection, this one too
+                return self.runs_json()
         if len(parts) != 4 or parts[:2] != ["api", "run"]:
             raise KeyError(path)
         view = self.views[int(parts[2])]
@@ -80,9 +107,20 @@ def make_handler(app: ViewerApp) -> type[BaseHTTPRequestHandler]:
     """A request handler class bound to ``app``."""
 
     class Handler(BaseHTTPRequestHandler):
-        """GET only: the page, static files, JSON."""
+        """GET only: the page, static files, JSON. Its request is ``(socket, head)``:
+        the head was read by ``ViewerServer``."""
 
         server_version = "btlog-view"
+
+        def setup(self) -> None:
+            """Read the request from its head; answer on the socket."""
+            self.connection, head = self.request
+            self.rfile = io.BytesIO(head)
+            self.wfile = self.connection.makefile("wb", buffering=0)
+
+        def finish(self) -> None:
+            """Close the answer's stream (the server closes the socket)."""
+            self.wfile.close()
 
         def log_message(self, format: str, *args: Any) -> None:
             """Quiet: the terminal shows the URL, not every request."""
@@ -109,6 +147,11 @@ def make_handler(app: ViewerApp) -> type[BaseHTTPRequestHandler]:
             except ValueError as error:
                 body = json.dumps({"error": str(error)}).encode()
                 self._send(HTTPStatus.BAD_REQUEST, body, "application/json")
+                return
+            except Exception as error:  # a bug: one line, and the page is told
+                where = f"btlog view: internal error on {url.path}"
+                print(f"{where}: {one_line(error)}", file=sys.stderr)
+                self._send(HTTPStatus.INTERNAL_SERVER_ERROR, b"internal error", "text/plain")
                 return
             body = json.dumps(data, default=repr, separators=(",", ":")).encode()
             self._send(HTTPStatus.OK, body, "application/json")
@@ -137,8 +180,139 @@ def make_handler(app: ViewerApp) -> type[BaseHTTPRequestHandler]:
     return Handler
 
 
-def serve(app: ViewerApp, port: int = 0) -> ThreadingHTTPServer:
-    """A server for ``app`` on 127.0.0.1 (port 0: a free port); call ``serve_forever``."""
-    server = ThreadingHTTPServer((HOST, port), make_handler(app))
-    server.daemon_threads = True
-    return server
+class _Pending:
+    """A connection whose request head is still coming."""
+
+    __slots__ = ("address", "deadline", "head")
+
+    def __init__(self, address: Any, deadline: float) -> None:
+        self.address, self.deadline, self.head = address, deadline, bytearray()
+
+
+class ViewerServer:
+    """Serves ``handler`` on 127.0.0.1 (see the module docstring): ``serve_forever`` in one
+    thread, ``shutdown`` from another, then ``server_close``."""
+
+    def __init__(
+        self,
+        handler: type[BaseHTTPRequestHandler],
+        port: int = 0,
+        workers: int = WORKERS,
+        timeout: float = REQUEST_TIMEOUT,
+        max_pending: int = MAX_PENDING,
+    ) -> None:
+        self.handler, self.timeout, self.max_pending = handler, timeout, max_pending
+        self.socket = socket.create_server((HOST, port), backlog=128)
+        self.socket.setblocking(False)
+        self.server_address = self.socket.getsockname()
+        self.pool = ThreadPoolExecutor(max_workers=workers, thread_name_prefix="btlog-view")
+        self.pending: OrderedDict[socket.socket, _Pending] = OrderedDict()
+        self._stop = threading.Event()
+        self._stopped = threading.Event()
+        #: complete requests handed to the pool and not yet answered
+        self.queued = 0
+        self._count = threading.Lock()
+
+    def serve_forever(self) -> None:
+        """Accept connections and read their heads until ``shutdown``."""
+        self._stopped.clear()
+        with selectors.DefaultSelector() as selector:
+            selector.register(self.socket, selectors.EVENT_READ)
+            try:
+                while not self._stop.is_set():
+                    for key, _events in selector.select(timeout=0.2):
+                        if key.fileobj is self.socket:
+                            self._accept(selector)
+                        else:
+                            self._read(selector, key.fileobj)  # type: ignore[arg-type]
+                    self._expire(selector)
+            finally:
+                for connection in list(self.pending):
+                    self._drop(selector, connection)
+                self._stopped.set()
+
+    def _accept(self, selector: selectors.BaseSelector) -> None:
+        for _ in range(64):  # what is waiting now, a batch at a time
+            try:
+                connection, address = self.socket.accept()
+            except (BlockingIOError, InterruptedError):
+                return
+            except OSError:  # out of descriptors, a reset before accept: try a bit later
+                time.sleep(0.05)
+                return
+            if len(self.pending) >= self.max_pending:
+                oldest = next(iter(self.pending))
+                self._drop(selector, oldest)
+            connection.setblocking(False)
+            self.pending[connection] = _Pending(address, time.monotonic() + self.timeout)
+            selector.register(connection, selectors.EVENT_READ)
+
+    def _read(self, selector: selectors.BaseSelector, connection: socket.socket) -> None:
+        pending = self.pending.get(connection)
+        if pending is None:
+            return
+        try:
+            data = connection.recv(HEAD_LIMIT)
+        except (BlockingIOError, InterruptedError):
+            return
+        except OSError:
+            data = b""
+        if not data:
+            self._drop(selector, connection)
+            return
+        pending.head += data
+        end = pending.head.find(b"\r\n\r\n")
+        if end < 0 and len(pending.head) <= HEAD_LIMIT:
+            return
+        selector.unregister(connection)
+        del self.pending[connection]
+        if end < 0 or self.queued >= self.max_pending:  # a head past the limit; a flood
+            connection.close()
+            return
+        with self._count:
+            self.queued += 1
+        self.pool.submit(self._answer, connection, pending.address, bytes(pending.head[: end + 4]))
+
+    def _expire(self, selector: selectors.BaseSelector) -> None:
+        now = time.monotonic()
+        for connection, pending in list(self.pending.items()):
+            if pending.deadline > now:
+                break  # in order of arrival: the rest are younger
+            self._drop(selector, connection)
+
+    def _drop(self, selector: selectors.BaseSelector, connection: socket.socket) -> None:
+        self.pending.pop(connection, None)
+        with contextlib.suppress(KeyError, ValueError):
+            selector.unregister(connection)
+        connection.close()
+
+    def _answer(self, connection: socket.socket, address: Any, head: bytes) -> None:
+        """In a worker: answer one complete request; a client gone is forgotten."""
+        try:
+            connection.setblocking(True)
+            connection.settimeout(self.timeout)
+            self.handler((connection, head), address, self)  # type: ignore[arg-type]
+        except OSError:  # the client went away or stopped reading: nothing to tell
+            pass
+        except Exception as error:
+            print(f"btlog view: internal error: {one_line(error)}", file=sys.stderr)
+        finally:
+            connection.close()
+            with self._count:
+                self.queued -= 1
+
+    def shutdown(self) -> None:
+        """Stop ``serve_forever`` (from another thread) and wait until it has."""
+        self._stop.set()
+        self._stopped.wait(5)
+
+    def server_close(self) -> None:
+        """Close the listening socket and let the workers finish."""
+        self.socket.close()
+        self.pool.shutdown(wait=False, cancel_futures=True)
+
+
+def serve(app: ViewerApp, port: int = 0, **limits: Any) -> ViewerServer:
+    """A server for ``app`` on 127.0.0.1 (port 0: a free port); call ``serve_forever``.
+    ``limits``: ``workers``, ``timeout``, ``max_pending`` (``ViewerServer``)."""
+    return ViewerServer(make_handler(app), port, **limits)
