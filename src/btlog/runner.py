@@ -22,7 +22,14 @@ from typing import Any
 
 from btlog import SCHEMA_VERSION, __version__, limits
 from btlog.domains import make_domain
-from btlog.domains.outcomes import FailSpec, Outcomes, OutcomesError, ScriptedLeaf
+from btlog.domains.outcomes import (
+    FailSpec,
+    Outcomes,
+    OutcomesError,
+    ScriptedLeaf,
+    halt_warnings,
+    watch_halts,
+)
 from btlog.executor.clock import SimClock, WallClock
 from btlog.executor.engine import Executor
 from btlog.explain.questions import Answer
@@ -232,6 +239,9 @@ def prepare(config: RunConfig) -> Prepared:
             _refuse_unreachable(question, config)
     clock = WallClock(config.tick_period) if config.realtime else SimClock(config.tick_period)
     executor = Executor(tree, clock=clock, leaf_factory=domain.leaf_factory(tree, outcomes))
+    for key, value in outcomes.typed_blackboard(executor).items():
+        executor.preset(key, value)
+    watch_halts(executor)
     return Prepared(tree, outcomes, questions, executor, undescribed)
 
 
@@ -293,6 +303,7 @@ def execute(
         live.refused if live is not None else [],
         [
             *tree.warnings,
+            *halt_warnings(executor),
             *outcomes.unapplied(executor.tree, activations),
             *(f"{config.descriptions_file}: {key!r} names no node" for key in prepared.undescribed),
         ],

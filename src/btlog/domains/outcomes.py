@@ -8,27 +8,37 @@ from IDLE, counted per node)::
       "look at chuck": [FAILURE, SUCCESS]       # per activation; the last entry repeats
       "detect chuck": [{status: FAILURE, duration: 1.0}, SUCCESS]
       "check grasped": {status: SUCCESS, ticks: 3}   # RUNNING ticks instead of seconds
+      "find locations": {status: SUCCESS, outputs: {num_locs: 3}}  # written on completion
+    blackboard:                                 # set before the first tick, as a program does
+      goal: {x: 2.0, y: 1.0}
 
 Keys are a node's name, its type for nameless nodes, or its path. ``--fail "look at
 chuck@2"`` fails that node's second activation; a failure rate fails each activation with
 that probability, drawn from the run's seeded random generator. A scripted leaf behaves
 as BT.CPP's StatefulActionNode; a condition with no RUNNING time completes in its tick.
+An entry's ``outputs`` are written to the blackboard entries its output ports name in the
+XML (``port="{key}"``) when it completes; ``blackboard`` entries are set in the root
+blackboard before the first tick. Both are converted to the type the ports declare (an
+``int`` port reading ``"3"`` gets 3; a value it cannot take is refused naming the line).
 """
 
 from __future__ import annotations
 
 import random
-from collections.abc import Callable
+from collections.abc import Callable, Mapping
 from dataclasses import dataclass, field, replace
 from pathlib import Path
 from typing import Any
 
 from btlog import documents
+from btlog.domains.halts import HaltCount, find_halt_cause, halt_warning
 from btlog.executor.actions import StatefulAction
-from btlog.executor.behavior import Runtime
+from btlog.executor.behavior import Behavior, Runtime
 from btlog.executor.blackboard import Blackboard
+from btlog.executor.engine import Executor
 from btlog.status import FAILURE, RUNNING, SUCCESS, Status
 from btlog.tree.model import CONDITION, Node, Tree
+from btlog.tree.ports import PortValueError, convert
 
 DEFAULT_ACTION = {"status": "SUCCESS", "duration": 0.5}
 
@@ -39,11 +49,13 @@ class OutcomesError(ValueError):
 
 @dataclass(frozen=True)
 class Outcome:
-    """One activation's script: the result, after ``duration_ns`` or ``ticks`` RUNNING."""
+    """One activation's script: the result, after ``duration_ns`` or ``ticks`` RUNNING,
+    and the values written on output ports when it completes."""
 
     status: Status = SUCCESS
     duration_ns: int = 0
     ticks: int | None = None
+    outputs: Mapping[str, Any] = field(default_factory=dict)
 
 
 @dataclass(frozen=True)
@@ -80,6 +92,8 @@ def _parse_entry(value: Any, base: Outcome) -> Outcome:
         outcome = replace(outcome, duration_ns=round(value["duration"] * 1e9), ticks=None)
     if "ticks" in value:
         outcome = replace(outcome, ticks=int(value["ticks"]), duration_ns=0)
+    if "outputs" in value:
+        outcome = replace(outcome, outputs=dict(value["outputs"]))
     return outcome
 
 
@@ -101,6 +115,9 @@ class Outcomes:
     #: each key under ``nodes`` when it is a YAML/JSON file.
     where: str = "outcomes"
     key_lines: dict[str, int] = field(default_factory=dict)
+    #: ``blackboard``: root entries set before the first tick (key -> value as written)
+    blackboard: dict[str, Any] = field(default_factory=dict)
+    blackboard_lines: dict[str, int] = field(default_factory=dict)
 
     @classmethod
     def from_mapping(cls, data: Any, where: str = "outcomes") -> Outcomes:
@@ -116,6 +133,8 @@ class Outcomes:
             outcomes.condition_default = Outcome(outcomes.default.status)
         for key, value in (data.get("nodes") or {}).items():
             outcomes.scripts[str(key)] = value if isinstance(value, list) else [value]
+        for key, value in (data.get("blackboard") or {}).items():
+            outcomes.blackboard[str(key).removeprefix("@")] = value
         return outcomes
 
     @classmethod
@@ -132,7 +151,15 @@ class Outcomes:
             for path_, line in lines.items()
             if len(path_) == 2 and path_[0] == "nodes"
         }
+        outcomes.blackboard_lines = {
+            str(path_[1]).removeprefix("@"): line
+            for path_, line in lines.items()
+            if len(path_) == 2 and path_[0] == "blackboard"
+        }
         return outcomes
+
+    def _at(self, line: int | None) -> str:
+        return f"{self.where}:{line}" if line else self.where
 
     def check_keys(self, tree: Tree) -> None:
         """Every key and --fail key must match at least one node of the tree."""
@@ -179,16 +206,74 @@ class Outcomes:
 
     def plan_for(self, node: Node, tree: Tree) -> list[Outcome]:
         """The per-activation script of a node (the last entry repeats). A condition's
-        entries take no RUNNING time unless they give one."""
+        entries take no RUNNING time unless they give one. Outputs must name output ports
+        the XML maps to a ``{key}``; their values are converted to the ports' types."""
         base = self.condition_default if node.kind == CONDITION else self.default
         for key in (node.path, node.name, None if node.name else node.type):
             if key and key in self.scripts and node in tree.lookup(key, leaves_only=True):
-                return [_parse_entry(entry, base) for entry in self.scripts[key]]
+                plan = [_parse_entry(entry, base) for entry in self.scripts[key]]
+                where = self._at(self.key_lines.get(key))
+                return [self._typed_outputs(outcome, node, tree, where) for outcome in plan]
         return [base]
+
+    def _typed_outputs(self, outcome: Outcome, node: Node, tree: Tree, where: str) -> Outcome:
+        if not outcome.outputs:
+            return outcome
+        typed = {}
+        for port, value in outcome.outputs.items():
+            written = node.ports.get(port)
+            if written is None:
+                raise OutcomesError(
+                    f"{where}: outputs: {node.description!r} has no port {port!r} in the tree"
+                )
+            if written.key is None:
+                raise OutcomesError(
+                    f"{where}: outputs: port {port!r} of {node.description!r} is "
+                    f"{written.value!r} in the tree, not a {{key}} to write"
+                )
+            type_name = tree.port_types.get(node.type, {}).get(port, "any")
+            typed[port] = _typed(value, type_name, f"{where}: outputs: {port!r}")
+        return replace(outcome, outputs=typed)
+
+    def typed_blackboard(self, executor: Executor) -> dict[str, Any]:
+        """The ``blackboard`` entries, each converted to the type of the ports that read
+        it from the root blackboard (as ``executor``'s nodes resolve their keys)."""
+        types: dict[str, tuple[str, str]] = {}  # key -> (type, what reads it)
+        for behavior in executor.behaviors.values():
+            node = behavior.node
+            declared = executor.tree.port_types.get(node.type, {})
+            for name, port in node.ports.items():
+                key = port.key
+                if key is None or declared.get(name, "any") in UNTYPED:
+                    continue
+                scope, resolved, _ = behavior.blackboard.board.locate(name if key == "=" else key)
+                if scope == "" and resolved in self.blackboard:
+                    reader = f"port {name!r} of {node.description!r}"
+                    types.setdefault(resolved, (declared[name], reader))
+        typed = {}
+        for key, value in self.blackboard.items():
+            type_name, reader = types.get(key, ("any", ""))
+            where = self._at(self.blackboard_lines.get(key))
+            typed[key] = _typed(value, type_name, f"{where}: blackboard {key!r} ({reader})")
+        return typed
 
     def forced_failures(self, node: Node, tree: Tree) -> set[int]:
         """Activations of ``node`` that --fail makes fail."""
         return {f.activation for f in self.failures if node in tree.lookup(f.key, leaves_only=True)}
+
+
+#: Port types that take any value as it is.
+UNTYPED = ("any", "str", "")
+
+
+def _typed(value: Any, type_name: str, what: str) -> Any:
+    """``value`` converted to a port's type, or OutcomesError naming ``what``."""
+    if type_name in UNTYPED:
+        return value
+    try:
+        return convert(value, type_name)
+    except PortValueError as error:
+        raise OutcomesError(f"{what}: {error}") from None
 
 
 Effect = Callable[["ScriptedLeaf", Status], Status]
@@ -223,6 +308,19 @@ class ScriptedLeaf(StatefulAction):
         self.outcome = plan[0]
         self.remaining = 0
         self.deadline = 0
+        self.halts = HaltCount()
+        #: the executor's behaviours, to tell what halts this leaf (``watch_halts``)
+        self.behaviors: Mapping[int, Behavior] | None = None
+
+    @property
+    def takes_time(self) -> bool:
+        """True when an activation of its script may stay RUNNING for a while."""
+        return any(o.ticks or o.duration_ns for o in self.plan)
+
+    def on_halted(self) -> None:
+        """Count the halt and what caused it (``btlog.domains.halts``)."""
+        behaviors = self.behaviors
+        self.halts.halted(find_halt_cause(self.node, behaviors) if behaviors else None)
 
     def tick(self) -> Status:
         """Conditions are evaluated afresh on every tick that finds them not RUNNING."""
@@ -260,9 +358,28 @@ class ScriptedLeaf(StatefulAction):
 
     def _complete(self) -> Status:
         status = self.outcome.status
+        self.halts.finished()
+        for port, value in self.outcome.outputs.items():
+            self.set_output(port, value)
         if self.effect is not None:
             status = self.effect(self, status)
         return status
+
+
+def watch_halts(executor: Executor) -> None:
+    """Let the scripted leaves of ``executor`` tell what halts them (for ``halt_warnings``)."""
+    for behavior in executor.behaviors.values():
+        if isinstance(behavior, ScriptedLeaf):
+            behavior.behaviors = executor.behaviors
+
+
+def halt_warnings(executor: Executor) -> list[str]:
+    """One warning per scripted leaf halted over and over before it finished (or that
+    never finished), with what halted it and the hint that fits."""
+    leaves = [b for b in executor.behaviors.values() if isinstance(b, ScriptedLeaf)]
+    scripted = {leaf.uid: leaf.takes_time for leaf in leaves}
+    found = (halt_warning(leaf.node, leaf.halts, scripted) for leaf in leaves)
+    return [warning for warning in found if warning is not None]
 
 
 def scripted_leaf_factory(

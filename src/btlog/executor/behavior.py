@@ -19,11 +19,18 @@ from typing import TYPE_CHECKING, Any, ClassVar
 from btlog.status import FAILURE, IDLE, RUNNING, SKIPPED, SUCCESS, Status
 from btlog.tree.model import Node, blackboard_key
 from btlog.tree.ports import PortValueError, convert
-from btlog.tree.script import ScriptError, compile_script, truthy
+from btlog.tree.script import MissingVariable, ScriptError, compile_script, truthy
 
 if TYPE_CHECKING:
     from btlog.executor.blackboard import Blackboard
     from btlog.executor.clock import SimClock, WallClock
+
+
+#: What a missing blackboard entry may be, and how a simulation provides it.
+HOST_ENTRY_HINT = (
+    "no node wrote it; if the program running the tree sets it, give it under "
+    "'blackboard:' in an outcomes file"
+)
 
 
 class Runtime:
@@ -201,6 +208,10 @@ class Behavior:
     def _run_script(self, script: Callable) -> Any:
         try:
             return script(self.blackboard)
+        except MissingVariable as error:
+            raise NodeExecutionError(
+                self.node, f"script error: {error} ({HOST_ENTRY_HINT}, or a scripting enum)"
+            ) from None
         except ScriptError as error:
             raise NodeExecutionError(self.node, f"script error: {error}") from None
 
@@ -296,7 +307,8 @@ class Behavior:
                 value = self.blackboard.get(key)
             except KeyError:
                 raise NodeExecutionError(
-                    self.node, f"port {name!r}: blackboard entry {key!r} does not exist"
+                    self.node,
+                    f"port {name!r}: blackboard entry {key!r} does not exist ({HOST_ENTRY_HINT})",
                 ) from None
         try:
             return convert(value, type_name)

@@ -352,6 +352,16 @@ class WaitValueUpdate(_EntryUpdated):
     not_updated = RUNNING
 
 
+class PassThrough(DecoratorBehavior):
+    """A decorator btlog has no code for (declared by a nodes model or a
+    ``<Decorator ID=…>`` tag, its code a plugin): ticks its child, whose result is its own
+    (SKIPPED included); a completed child is reset as every decorator resets it."""
+
+    def tick(self) -> Status:
+        self.set_status(RUNNING)
+        return self.child.execute_tick()
+
+
 class SubTree(DecoratorBehavior):
     """Tick the subtree's root; RUNNING is set only when starting from IDLE, and the
     SubTree node keeps its result until its parent resets it."""

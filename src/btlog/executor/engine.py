@@ -31,17 +31,21 @@ from btlog.executor.behavior import (
 )
 from btlog.executor.blackboard import UNSET, Blackboard, subtree_remapping
 from btlog.executor.clock import SimClock, WallClock
-from btlog.executor.controls import CONTROLS
-from btlog.executor.decorators import DECORATORS
+from btlog.executor.controls import CONTROLS, Sequence
+from btlog.executor.decorators import DECORATORS, PassThrough
 from btlog.executor.nav2_controls import NAV2_CONTROLS
 from btlog.executor.nav2_decorators import NAV2_DECORATORS
 from btlog.status import FAILURE, IDLE, RUNNING, SUCCESS, Status
-from btlog.tree.model import SUBTREE, Node, Tree
+from btlog.tree.model import CONTROL, DECORATOR, SUBTREE, Node, Tree
 from btlog.tree.ports import parse_literal
 from btlog.tree.registry import Registry
 
 #: ``TickRecord`` from a tuple, a third faster than its ``__new__`` (once a tick)
 _tick_record = TickRecord._make
+
+#: How a control or decorator btlog has no code for runs (the loader warns about each
+#: type): as a Sequence, and as its child (``btlog.tree.declared``).
+PASS_THROUGH: dict[str, type[Behavior]] = {CONTROL: Sequence, DECORATOR: PassThrough}
 
 BUILTIN_BEHAVIORS: dict[str, type[Behavior]] = {
     **CONTROLS,
@@ -96,6 +100,9 @@ class Executor:
             inner = self._subtree_board(node, board)
             behavior = cls(node, self.runtime, board)
             behavior.children = [self._build(node.children[0], inner)]
+        elif cls is None and node.children and node.kind in PASS_THROUGH:
+            behavior = PASS_THROUGH[node.kind](node, self.runtime, board)
+            behavior.children = [self._build(child, board) for child in node.children]
         elif cls is None:
             if self.leaf_factory is None or node.children:
                 raise NodeExecutionError(node, f"no implementation of node type {node.type!r}")
@@ -120,6 +127,14 @@ class Executor:
             board.preset(name, value)
             self._initial_writes.append((board, name, value))
         return board
+
+    def preset(self, key: str, value: Any) -> None:
+        """Set a root blackboard entry before the first tick, as a BT.CPP program sets one
+        before ticking; its write is reported when the run begins."""
+        if self.started:
+            raise RuntimeError("preset() after the run began")
+        self.root_board.preset(key, value)
+        self._initial_writes.append((self.root_board, key, value))
 
     # -- subscribers -------------------------------------------------------------------
     def subscribe(self, subscriber: Subscriber) -> None:

@@ -15,6 +15,7 @@ from __future__ import annotations
 from dataclasses import dataclass, replace
 
 from btlog import limits
+from btlog.tree.declared import DeclaredTypes
 from btlog.tree.descriptions import DESCRIPTION
 from btlog.tree.documents import SUBTREE_TAGS, Definition, Documents
 from btlog.tree.model import (
@@ -74,6 +75,8 @@ class TreeBuilder:
         self.format = first.format or 3
         self.uid = 0
         self.max_nodes = limits.MAX_NODES
+        self.declared = DeclaredTypes()
+        self.port_types: dict[str, dict[str, str]] = {}
 
     def build(self, main: str) -> Tree:
         """The tree ``main`` with every SubTree expanded; refused before building when it
@@ -91,7 +94,10 @@ class TreeBuilder:
         root = self._build(definition.root_element(), context)
         _describe_by_tree(root, definition)
         files = self.documents.files({node.file for node in root.walk()})
-        return Tree(root=root, name=main, format=self.format, files=files)
+        tree = Tree(root=root, name=main, format=self.format, files=files)
+        tree.warnings = list(self.declared.warnings.values())
+        tree.port_types = self.port_types
+        return tree
 
     def _next_uid(self, file: str, line: int, depth: int) -> int:
         if depth > limits.MAX_DEPTH:
@@ -113,6 +119,8 @@ class TreeBuilder:
         node_type, strict = self._node_type(element, len(children), file, line)
         uid = self._next_uid(file, line, context.depth)
         type_id = node_type.id
+        if node_type.ports and type_id not in self.port_types:
+            self.port_types[type_id] = {n: spec.type for n, spec in node_type.ports.items()}
         name = element.get("name", type_id)
         node = Node(
             uid=uid,
@@ -148,22 +156,27 @@ class TreeBuilder:
                 )
         node_type = self.registry.get(type_id)
         strict = node_type is not None and not self.accept_unknown
+        where = f"{file}:{line}"
         if node_type is None and self.accept_unknown:
             node_type = _imported_type(type_id, tag, children)
+        elif node_type is None and tag in ("Control", "Decorator"):
+            declared = NodeType(type_id, GENERIC_TAGS[tag], declared_only=True)
+            node_type = self.declared.resolve(declared, children, where)
         elif node_type is None:
             if children:
-                raise TreeError(f"unknown node type {type_id!r} with children", file, line)
-            node_type = NodeType(type_id, leaf_kind(tag))
-        elif node_type.declared_only and node_type.kind in (CONTROL, DECORATOR):
-            if self.accept_unknown:
-                node_type = _imported_type(type_id, tag, children, node_type)
-            else:
                 raise TreeError(
-                    f"node type {type_id!r} is declared in <TreeNodesModel> but btlog "
-                    "has no implementation of it",
+                    f"unknown node type {type_id!r} with children: BT.CPP would need the "
+                    "plugin that registers it; declared in a <TreeNodesModel> (the tree's, "
+                    "or --nodes-model) it runs as a pass-through",
                     file,
                     line,
                 )
+            node_type = NodeType(type_id, leaf_kind(tag))
+        elif node_type.declared_only and self.accept_unknown:
+            if node_type.kind in (CONTROL, DECORATOR):
+                node_type = _imported_type(type_id, tag, children, node_type)
+        elif node_type.declared_only:
+            node_type = self.declared.resolve(node_type, children, where)
         if node_type.kind == SUBTREE:
             raise TreeError(f"{type_id!r} is a subtree; use <SubTree ID={type_id!r}/>", file, line)
         low, high = node_type.children
@@ -194,10 +207,18 @@ class TreeBuilder:
             if _special_attribute(attribute, value, attributes, file, line):
                 continue
             if strict and attribute not in node_type.ports:
-                raise TreeError(f"{node_type.id} has no port {attribute!r}", file, line)
+                self._unknown_port(node_type, attribute, file, line)
             spec = node_type.ports.get(attribute)
             if spec is not None and not self.accept_unknown and blackboard_key(value) is None:
-                _check_literal(value, spec, attribute, node_type.id, file, line)
+                problem = _literal_problem(value, spec)
+                if problem is not None and node_type.declared_only:
+                    self.declared.bad_literal(node_type.id, attribute, problem, f"{file}:{line}")
+                elif problem is not None:
+                    raise TreeError(
+                        f"{node_type.id}: bad value {value!r} for port {attribute!r}: {problem}",
+                        file,
+                        line,
+                    )
             ports[attribute] = Port(value, node_type.port_direction(attribute))
         for port_name, spec in node_type.ports.items():
             if port_name not in ports and spec.default is not None:
@@ -206,6 +227,20 @@ class TreeBuilder:
         if script_port in ports and blackboard_key(ports[script_port].value) is None:
             _check_script(ports[script_port].value, script_port, file, line)
         return ports, attributes
+
+    def _unknown_port(self, node_type: NodeType, port: str, file: str, line: int) -> None:
+        """A port the type does not declare: refused for BT.CPP's own types (BT.CPP
+        refuses it too), warned about for a model's types and plugin types (the XML wins)."""
+        if node_type.declared_only or node_type.plugin:
+            note = (
+                "in the nodes model"
+                if node_type.declared_only
+                else "in btlog's implementation (a plugin's ports differ between versions)"
+            )
+            self.declared.unknown_port(node_type.id, port, f"{file}:{line}", note)
+            return
+        known = ", ".join(node_type.ports) or "none"
+        raise TreeError(f"{node_type.id} has no port {port!r} (its ports: {known})", file, line)
 
     def _build_subtree(self, element: XmlElement, context: BuildContext) -> Node:
         file, line = context.file, element.sourceline or 0
@@ -393,17 +428,15 @@ def _allowed_port_name(name: str) -> bool:
     return bool(name) and name[0].isalpha() and not (set(name) & _FORBIDDEN_PORT_CHARS)
 
 
-def _check_literal(
-    value: str, spec: PortSpec, port: str, type_id: str, file: str, line: int
-) -> None:
+def _literal_problem(value: str, spec: PortSpec) -> str | None:
+    """Why the port's type refuses the literal ``value`` (None when it takes it)."""
     from btlog.tree.ports import PortValueError, convert
 
     try:
         convert(value, spec.type)
     except PortValueError as error:
-        raise TreeError(
-            f"{type_id}: bad value {value!r} for port {port!r}: {error}", file, line
-        ) from None
+        return str(error)
+    return None
 
 
 def _check_script(code: str, attribute: str, file: str, line: int) -> None:

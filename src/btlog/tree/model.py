@@ -197,6 +197,9 @@ class Tree:
     #: what the loader noticed and accepted (a nodes model the XML contradicts, a node
     #: run as a pass-through, …), one line each; not recorded
     warnings: list[str] = field(default_factory=list)
+    #: the declared type of each port of each node type used (type ID -> port -> type,
+    #: e.g. ``int``), from btlog's registry and the nodes models; not recorded
+    port_types: dict[str, dict[str, str]] = field(default_factory=dict)
     #: why ``name`` is the main tree: "--main-tree", "main_tree" (main_tree_to_execute),
     #: "only" (the only tree) or "uncalled" (the only tree no other tree calls)
     main_choice: str = ""

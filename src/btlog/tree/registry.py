@@ -11,7 +11,7 @@ this module only declares.
 from __future__ import annotations
 
 from collections.abc import Callable, Mapping
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 
 from btlog.tree.model import (
     ACTION,
@@ -52,6 +52,8 @@ class NodeType:
     """A registration ID: its kind, its ports, and for user leaves the factory to build it.
 
     ``children`` is the allowed number of children as (minimum, maximum or None).
+    ``plugin`` marks a type btlog implements from a plugin library whose ports differ
+    between its versions (Nav2's): a port btlog does not know is warned about, not refused.
     """
 
     id: str
@@ -60,6 +62,7 @@ class NodeType:
     factory: Callable | None = None
     children: tuple[int, int | None] = (0, 0)
     declared_only: bool = False
+    plugin: bool = False
 
     def port_direction(self, port: str) -> str:
         """The direction of a port; undeclared ports follow the paper's convention."""
@@ -155,7 +158,8 @@ def _builtins() -> dict[str, NodeType]:
         NodeType("Sleep", ACTION, {"msec": _in("unsigned")}),
         NodeType("WasEntryUpdated", ACTION, entry),
     ]
-    return {t.id: t for t in [*types, *_nav2_builtins()]}
+    nav2 = [replace(t, plugin=True) for t in _nav2_builtins()]
+    return {t.id: t for t in [*types, *nav2]}
 
 
 def _nav2_builtins() -> list[NodeType]:

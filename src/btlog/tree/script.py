@@ -30,6 +30,11 @@ class ScriptError(ValueError):
     """A script that does not parse, or fails while running."""
 
 
+class MissingVariable(ScriptError):
+    """A script read a variable nothing has written (the host program's entry, or one of
+    its scripting enums, in BT.CPP)."""
+
+
 class Environment(Protocol):
     """What a script reads and writes: the node's blackboard."""
 
@@ -322,7 +327,7 @@ class _Parser:
 
 def _read(env: Environment, key: str) -> Any:
     if not env.exists(key):
-        raise ScriptError(f"variable {key!r} is not on the blackboard")
+        raise MissingVariable(f"variable {key!r} is not on the blackboard")
     return env.get(key)
 
 
