@@ -217,6 +217,20 @@ def test_a_publisher_silent_for_good_ends_the_recording_keeping_it(tmp_path: Pat
     assert len(recorded(out)[0]) > 10
 
 
+def test_an_attach_ending_while_the_publisher_is_silent_says_so(tmp_path: Path) -> None:
+    out = tmp_path / "ends.mcap"
+    options = dataclasses.replace(FAST, duration=1.0)
+    with FakePublisher(XML) as publisher, attached(publisher, out, options) as attaching:
+        robot = Robot(publisher)
+        wait_polls(publisher)
+        publisher.fall_silent()
+        result = attaching.ends_by_itself()
+        robot.stop()
+    assert not result.gone
+    assert any("had not answered for" in w for w in result.build.warnings)
+    assert recorded(out)[0]
+
+
 def _cut(header: bytes) -> list[bytes]:
     records = b"".join(
         (1000 * i).to_bytes(6, "little") + (2).to_bytes(2, "little") + bytes([1]) for i in (1, 2)
@@ -294,7 +308,8 @@ def test_bad_blackboard_replies_are_skipped_naming_the_endpoint(tmp_path, payloa
         wait_polls(publisher, "B", 3)
         result = attaching.finish()
     assert not result.gone
-    assert any(why in w and "blackboard replies skipped" in w for w in result.build.warnings)
+    told = [w for w in result.build.warnings if "blackboard replies skipped" in w]
+    assert len(told) == 1 and why in told[0] and publisher.endpoint in told[0]
     writes = [e.value for e in open_recording(out).events if isinstance(e, BlackboardWrite)]
     assert writes == [1, 2]
 

@@ -288,7 +288,7 @@ class _Attachment:
         try:
             dump = self.client.blackboards(list(self.names))
         except BadReply as error:
-            self.bad_blackboards.append(_what(error))
+            self.bad_blackboards.append(str(error))
             return
         except Silent as error:
             self._reconnect(error)
@@ -324,7 +324,12 @@ class _Attachment:
             left = deadline - time.monotonic()
             if left <= 0:
                 self._give_up(f"{_what(error)}; no answer for {self.options.reconnect:g} s")
-            if delay and self._wait(min(delay, left)):
+            if delay and self._wait(min(delay, left)):  # the attach ends meanwhile
+                quiet = seconds(self.now_ns() - since)
+                self.builder.warnings.append(
+                    f"the publisher had not answered for {quiet} s when the attach ended; "
+                    f"the recording ends at {seconds(since)} s"
+                )
                 raise _Ended
             tries += 1
             try:
