@@ -335,7 +335,7 @@ def test_attach_cli_reconnects_and_tells_the_gap(tmp_path: Path) -> None:
     assert result.returncode == 0, result.stderr
     assert "btlog attach: warning: no data from" in result.stderr
     assert "Traceback" not in result.stderr
-    assert "No data from" in btlog("explain", out).stdout
+    assert "No data from" in run_cli("explain", out).stdout
 
 
 def test_attach_start_time_of_30_nines_records_from_the_epoch(tmp_path: Path) -> None:

@@ -6,7 +6,6 @@ from __future__ import annotations
 
 import sqlite3
 import struct
-import subprocess
 from pathlib import Path
 
 import pytest
@@ -16,7 +15,8 @@ from btlog.record.reader import open_recording
 from btlog.sinks.btcpp_filelog import export_filelog
 from btlog.sources.btcpp_filelog import read_filelog
 from btlog.status import Status
-from tests.cli_support import ROOT, assert_bad_input, btlog
+from tests.cli_support import ROOT
+from tests.fuzz_support import Outcome, assert_contract, run_cli
 
 KITTING_RUN = ROOT / "recordings" / "kitting-look-at-chuck-fails.mcap"
 
@@ -50,15 +50,15 @@ def test_a_start_time_that_is_no_wall_time_imports_from_the_epoch_with_a_warning
 ) -> None:
     broken = _with_start(btlog_file, tmp_path / "start.btlog", start_us)
     out = tmp_path / "start.mcap"
-    result = btlog("import", broken, "-o", out)
-    assert result.returncode == 0, result.stderr
+    result = run_cli("import", broken, "-o", out)
+    assert result.code == 0, result.stderr
     offset = read_filelog(btlog_file).start_offset
     assert f"start.btlog (byte {offset}): start time {start_us} µs" in result.stderr
     assert "1970-01-01T00:00:00Z" in result.stderr
     recording = open_recording(out)
     assert recording.metadata["started_at"].startswith("1970-01-01T00:00:00")
     good = tmp_path / "good.mcap"
-    assert btlog("import", btlog_file, "-o", good).returncode == 0
+    assert run_cli("import", btlog_file, "-o", good).code == 0
     assert _transitions(out) == _transitions(good)
 
 
@@ -69,8 +69,8 @@ def test_a_record_naming_no_node_is_refused_with_its_byte(btlog_file: Path, tmp_
     data[at + 6 : at + 8] = (999).to_bytes(2, "little")
     broken = tmp_path / "uid.btlog"
     broken.write_bytes(bytes(data))
-    result = btlog("import", broken, "-o", tmp_path / "uid.mcap")
-    assert_bad_input(result, "uid.btlog", "node uid 999", f"record 5 (byte {at})")
+    result = run_cli("import", broken, "-o", tmp_path / "uid.mcap")
+    assert_contract(result, "uid.btlog", "node uid 999", f"record 5 (byte {at})", codes=[2])
     assert not (tmp_path / "uid.mcap").exists()
 
 
@@ -113,8 +113,8 @@ def _expected(rows: list[tuple]) -> list[tuple]:
     return [((t - rows[0][0]) * 1000, u, Status(s)) for t, u, s, _x in rows]
 
 
-def _import(db: Path, out: Path) -> subprocess.CompletedProcess:
-    return btlog("import", db, "-o", out)
+def _import(db: Path, out: Path) -> Outcome:
+    return run_cli("import", db, "-o", out)
 
 
 def test_a_negative_timestamp_imports_from_the_epoch_with_a_warning(kitting_rows, tmp_path):
@@ -122,7 +122,7 @@ def test_a_negative_timestamp_imports_from_the_epoch_with_a_warning(kitting_rows
     shifted = [(t - rows[0][0] - 5_000_000, u, s, x) for t, u, s, x in rows]
     db = sqlite_log(tmp_path / "neg.db3", xml, shifted)
     result = _import(db, tmp_path / "neg.mcap")
-    assert result.returncode == 0, result.stderr
+    assert result.code == 0, result.stderr
     assert "neg.db3 session 1: start time -5000000 µs" in result.stderr
     assert _transitions(tmp_path / "neg.mcap") == _expected(shifted)
 
@@ -131,14 +131,14 @@ def test_bt_cpp_4_5_files_without_extra_data_nor_nodes_import(kitting_rows, tmp_
     xml, rows = kitting_rows
     db = sqlite_log(tmp_path / "old.db3", xml, rows, old=True)
     result = _import(db, tmp_path / "old.mcap")
-    assert result.returncode == 0 and not result.stderr, result.stderr
+    assert result.code == 0 and not result.stderr, result.stderr
     assert _transitions(tmp_path / "old.mcap") == _expected(rows)
     con = sqlite3.connect(db)  # node_uid, as 4.6 names it, but no extra_data column
     con.execute("ALTER TABLE Transitions RENAME COLUMN uid TO node_uid")
     con.commit()
     con.close()
     result = _import(db, tmp_path / "mixed.mcap")
-    assert result.returncode == 0 and not result.stderr, result.stderr
+    assert result.code == 0 and not result.stderr, result.stderr
     assert _transitions(tmp_path / "mixed.mcap") == _expected(rows)
 
 
@@ -154,7 +154,7 @@ def test_a_database_damaged_part_way_keeps_the_transitions_before_the_damage(
     data[at : at + page] = bytes([0x55]) * page
     db.write_bytes(bytes(data))
     result = _import(db, tmp_path / "bad.mcap")
-    assert result.returncode == 0, result.stderr
+    assert result.code == 0, result.stderr
     assert "bad.db3 session 1: the database is damaged after the transition at timestamp" in (
         result.stderr
     )
@@ -172,7 +172,8 @@ def test_an_undecodable_tree_is_refused_naming_the_session(kitting_rows, tmp_pat
     con.execute("UPDATE Definitions SET xml_tree = CAST(? AS TEXT)", (broken,))
     con.commit()
     con.close()
-    assert_bad_input(_import(db, tmp_path / "x.mcap"), "xml.db3 session 1", "not UTF-8", "byte 100")
+    result = _import(db, tmp_path / "x.mcap")
+    assert_contract(result, "xml.db3 session 1", "not UTF-8", "byte 100", codes=[2])
     assert not (tmp_path / "x.mcap").exists()
 
 
@@ -187,11 +188,12 @@ def test_an_undecodable_tree_is_refused_naming_the_session(kitting_rows, tmp_pat
 def test_bad_values_in_a_row_are_refused_naming_the_timestamp(kitting_rows, tmp_path, row, words):
     xml, _rows = kitting_rows
     db = sqlite_log(tmp_path / "row.db3", xml, [(1, 1, 1, ""), row])
-    assert_bad_input(_import(db, tmp_path / "row.mcap"), "row.db3 session 1", *words)
+    assert_contract(_import(db, tmp_path / "row.mcap"), "row.db3 session 1", *words, codes=[2])
     assert not (tmp_path / "row.mcap").exists()
 
 
 def test_a_huge_gap_between_timestamps_is_refused_not_overflowed(kitting_rows, tmp_path):
     xml, _rows = kitting_rows
     db = sqlite_log(tmp_path / "gap.db3", xml, [(1, 1, 1, ""), ((1 << 62), 1, 2, "")])
-    assert_bad_input(_import(db, tmp_path / "gap.mcap"), "gap.db3", "past 2262", "timestamp")
+    result = _import(db, tmp_path / "gap.mcap")
+    assert_contract(result, "gap.db3", "past 2262", "timestamp", codes=[2])

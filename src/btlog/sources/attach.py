@@ -134,7 +134,7 @@ def attach(
         tree = tree_from_log_xml(xml, f"{endpoint} (tree)", registry)
         start_us = client.start()
         warnings: list[str] = []
-        started = wall_start(start_us, f"{endpoint} (start time)", warnings)
+        started = wall_start(start_us, endpoint, warnings)
         source = Source(
             FORMAT,
             endpoint,
