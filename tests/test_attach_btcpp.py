@@ -99,7 +99,7 @@ class _Polled(AttachHooks):
 
 def _raise_if_publisher_fell_silent(stderr: str) -> None:
     """``_OracleDied`` when ``btlog attach`` reported BT.CPP's publisher falling silent."""
-    if "stopped answering" in stderr:
+    if "stopped answering" in stderr or "reconnecting for up to" in stderr:
         raise _OracleDied(f"BT.CPP's Groot2 publisher stopped answering: {stderr.strip()}")
 
 
@@ -133,7 +133,7 @@ def _attach_to_btcpp(
         theirs = oracle.result(timeout=30)
     if theirs is None:
         raise _OracleDied("BT.CPP's process ended without a result")
-    if result.gone:  # seen once in CI: BT.CPP's run ended well, its publisher fell silent
+    if result.gone or result.reconnects:  # seen in CI: BT.CPP's publisher fell silent
         raise _OracleDied(f"BT.CPP's Groot2 publisher stopped answering: {result.build.warnings}")
     return result, theirs, out
 

@@ -262,6 +262,9 @@ def attach(args: Namespace) -> int:
             super().on_start(builder)
             print(f"attached to {args.endpoint} ({len(builder.tree)} nodes); Ctrl-C to stop")
 
+        def on_fault(self, builder: RecordingBuilder, message: str) -> None:
+            print(f"btlog attach: {safe(message)}", file=sys.stderr, flush=True)
+
     result = record(
         args.endpoint,
         args.output,

@@ -86,6 +86,10 @@ class AttachHooks:
     def before_close(self, builder: RecordingBuilder) -> None:
         """Once, after the last poll, before the file is finished."""
 
+    def on_fault(self, builder: RecordingBuilder, message: str) -> None:
+        """As it happens: the publisher fell silent (btlog reconnects), or a gap was
+        marked; ``message`` is one line for the user."""
+
 
 @dataclass
 class AttachResult:
@@ -320,6 +324,9 @@ class _Attachment:
             self._give_up(f"{_what(error)} (reconnecting is off)")
         deadline = time.monotonic() + self.options.reconnect
         delay, tries = (FIRST_RETRY if error is not None else 0.0), 0
+        if error is not None:
+            what = f"{_what(error)}; reconnecting for up to {self.options.reconnect:g} s"
+            self.hooks.on_fault(self.builder, what)
         while True:
             left = deadline - time.monotonic()
             if left <= 0:
@@ -401,6 +408,8 @@ class _Attachment:
         else:
             gaps.append(gap)
         self.builder.write(gap.to_ns, GAP_SCOPE, f"gap {len(gaps)}", gap.to_json())
+        span = f"{seconds(gap.from_ns)} s to {seconds(gap.to_ns)} s"
+        self.hooks.on_fault(self.builder, f"no data from {span}: {gap.why}")
 
     # -- the end -----------------------------------------------------------------------
     def finish(self) -> None:
