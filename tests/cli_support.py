@@ -5,6 +5,7 @@ from __future__ import annotations
 import os
 import subprocess
 import sys
+from collections.abc import Callable
 from pathlib import Path
 
 ROOT = Path(__file__).resolve().parent.parent
@@ -35,9 +36,11 @@ def btlog(
     env: dict[str, str] | None = None,
     timeout: float = 120,
     input: str | None = None,
+    address_space: int | None = None,
 ) -> subprocess.CompletedProcess:
     """Run ``btlog ARGS`` (this checkout's source) and capture its output as text (see
-    ``btlog_environment``); ``input`` is its standard input."""
+    ``btlog_environment``); ``input`` is its standard input; ``address_space``, bytes,
+    limits the process's address space as ``ulimit -v`` does."""
     return subprocess.run(
         btlog_command(*args),
         cwd=cwd,
@@ -47,7 +50,19 @@ def btlog(
         text=True,
         timeout=timeout,
         check=False,
+        preexec_fn=None if address_space is None else _address_space_limit(address_space),
     )
+
+
+def _address_space_limit(size: int) -> Callable[[], None]:
+    """A ``preexec_fn`` limiting the child's address space to ``size`` bytes."""
+
+    def limit() -> None:
+        import resource
+
+        resource.setrlimit(resource.RLIMIT_AS, (size, size))
+
+    return limit
 
 
 def assert_bad_input(result: subprocess.CompletedProcess, *words: str) -> None:

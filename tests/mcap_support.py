@@ -14,8 +14,10 @@ from btlog.domains.outcomes import Outcomes, scripted_leaf_factory
 from btlog.executor.engine import Executor
 from btlog.record import Recorder
 from btlog.record import format as fmt
+from btlog.record.columns import pack_event_rows, pack_ticks
 from btlog.record.reader import iter_messages, read_metadata
 from btlog.schema import schema_text
+from btlog.status import Status
 from btlog.tree.loader import load_tree_text
 
 Message = tuple[str, int, bytes]
@@ -29,13 +31,40 @@ LOOP = """<root BTCPP_format="4"><BehaviorTree ID="MainTree">
 
 def record_loop(path: Path, ticks: int = 40) -> Path:
     """A recording of ``LOOP`` run for ``ticks`` ticks."""
-    tree = load_tree_text(LOOP)
+    return record_tree(path, LOOP, ticks)
+
+
+def record_tree(path: Path, xml: str, ticks: int = 40) -> Path:
+    """A recording of the tree ``xml`` run for ``ticks`` ticks (actions scripted to
+    succeed after one tick)."""
+    tree = load_tree_text(xml)
     outcomes = Outcomes.from_mapping({"default": {"status": "SUCCESS", "ticks": 1}})
     executor = Executor(tree, leaf_factory=scripted_leaf_factory(tree, outcomes))
     executor.subscribe(Recorder(path, tree, {"domain": "loop"}))
     executor.run(max_ticks=ticks)
     executor.close()
     return path
+
+
+def wide_tree(siblings: int) -> str:
+    """A legal wide tree: one Sequence of ``siblings`` AlwaysSuccess leaves."""
+    leaves = "<AlwaysSuccess/>" * siblings
+    return (
+        '<root BTCPP_format="4"><BehaviorTree ID="MainTree">'
+        f'<Sequence name="wide">{leaves}</Sequence></BehaviorTree></root>'
+    )
+
+
+def subtrees_tree(count: int) -> str:
+    """A tree of ``count`` SubTrees under one Sequence, each of one action."""
+    calls = "".join(f'<SubTree ID="S{i}"/>' for i in range(count))
+    bodies = "".join(
+        f'<BehaviorTree ID="S{i}"><AlwaysSuccess name="a{i}"/></BehaviorTree>' for i in range(count)
+    )
+    return (
+        '<root BTCPP_format="4" main_tree_to_execute="MainTree"><BehaviorTree ID="MainTree">'
+        f'<Sequence name="many">{calls}</Sequence></BehaviorTree>{bodies}</root>'
+    )
 
 
 def stored_metadata(source: Path) -> dict[str, str]:
@@ -98,4 +127,23 @@ def rewrite_as_version_2(source: Path, target: Path) -> Path:
         (topic, log_time, version_2_payload(topic, data))
         for topic, log_time, data in iter_messages(source)
     )
+    return write_messages(target, metadata, messages)
+
+
+def write_blackboard_dump(target: Path, keys: int, value_bytes: int) -> Path:
+    """A recording of ``LOOP``'s tree whose one events message writes ``keys`` entries
+    of about ``value_bytes`` each (a blackboard dump: tiny on disk, large in memory),
+    followed by one tick."""
+    source = record_loop(target.with_name(f".{target.name}.source.mcap"), ticks=1)
+    metadata = stored_metadata(source)
+    tree = next(data for topic, _time, data in iter_messages(source) if topic == fmt.TREE_TOPIC)
+    source.unlink()
+    value = "v" * value_bytes
+    writes = [[seq, 1000, 1, "", f"key{seq}", f"{value}{seq}", "str", None] for seq in range(keys)]
+    start = 10**18
+    messages = [
+        (fmt.TREE_TOPIC, start, tree),
+        (fmt.EVENTS_TOPIC, start + 1000, pack_event_rows(1, [], writes)),
+        (fmt.TICKS_TOPIC, start + 1000, pack_ticks([(1, 0, 1000, Status.RUNNING)])),
+    ]
     return write_messages(target, metadata, messages)

@@ -11,8 +11,11 @@ take ``--max-nodes`` and ``--max-file-size`` to raise (or lower) the first two.
 
 from __future__ import annotations
 
+import ctypes
+import ctypes.util
 import math
 import os
+import resource
 import stat
 from dataclasses import dataclass, replace
 
@@ -103,3 +106,23 @@ def seconds(value: object, what: str, positive: bool = False) -> float:
     ):
         raise LimitError(f"{what}: expected a finite number of seconds {bound}, got {value!r}")
     return float(number)
+
+
+#: glibc's ``mallopt`` parameter for the number of malloc arenas.
+_M_ARENA_MAX = -8
+
+
+def fit_address_space() -> None:
+    """Under an address-space limit (``ulimit -v``), make the allocators reserve little
+    more than they use; call it before Arrow first allocates. Arrow then uses the
+    system allocator (mimalloc reserves 1 GiB of address space at its first
+    allocation) and glibc at most 2 malloc arenas (each thread DuckDB or a loader starts
+    would reserve 64 MiB). Without such a limit nothing changes."""
+    soft, _hard = resource.getrlimit(resource.RLIMIT_AS)
+    if soft == resource.RLIM_INFINITY:
+        return
+    os.environ.setdefault("ARROW_DEFAULT_MEMORY_POOL", "system")
+    name = ctypes.util.find_library("c")
+    mallopt = getattr(ctypes.CDLL(name), "mallopt", None) if name else None
+    if mallopt is not None:
+        mallopt(_M_ARENA_MAX, 2)

@@ -20,6 +20,7 @@ from btlog import __version__
 from btlog.cli.limit_flags import add_limit_flags, apply_limit_flags
 from btlog.cli.tree_flags import add_tree_flags
 from btlog.errors import EXIT_BAD_INPUT, EXIT_BUG, EXIT_OK, one_line
+from btlog.limits import fit_address_space
 from btlog.render.escape import safe
 
 #: Options whose value may be a negative moment (``--at -2s``, ``--ask "-2s=…"``).
@@ -321,6 +322,7 @@ def _rejoin_positionals(args: argparse.Namespace, extra: list[str]) -> bool:
 
 def main(argv: Sequence[str] | None = None) -> int:
     """Run the command line; returns the exit code."""
+    fit_address_space()
     parser = build_parser()
     try:
         args, extra = parser.parse_known_args(

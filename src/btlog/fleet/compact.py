@@ -30,6 +30,7 @@ import duckdb
 
 from btlog.fleet.layout import FILES, LAKE_TABLES, LakeError
 from btlog.fleet.lock import lake_lock
+from btlog.replay.connections import connect
 
 
 def partitions(lake: str | os.PathLike) -> list[str]:
@@ -46,7 +47,7 @@ def compact_lake(lake: str | os.PathLike, only: Iterable[str] | None = None) -> 
         raise LakeError(f"{lake}: not a btlog lake (no runs folder)")
     rewritten = 0
     with lake_lock(root, exclusive=True):
-        con = duckdb.connect()
+        con = connect()
         try:
             for partition in only if only is not None else partitions(root):
                 rewritten += _compact_partition(con, root, partition)

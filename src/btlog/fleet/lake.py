@@ -30,6 +30,7 @@ import duckdb
 from btlog.fleet.derived import create_derived, drop_derived
 from btlog.fleet.layout import FILES, LAKE_TABLES, NONE, PARTITIONS, LakeError
 from btlog.fleet.lock import lake_lock
+from btlog.replay.connections import connect
 from btlog.replay.database import ReplayError, Run, open_runs
 from btlog.replay.tables import identifier
 
@@ -187,7 +188,7 @@ def open_lake(lake: str | os.PathLike) -> duckdb.DuckDBPyConnection:
     present = [t for t in LAKE_TABLES if any((root / t).glob(FILES))]
     if "runs" not in present:
         raise LakeError(f"{lake}: not a btlog lake (no runs/domain=…/date=…/*.parquet)")
-    con = duckdb.connect()
+    con = connect(sandbox=True)
     for table in present:
         pattern = str(root / table / FILES)
         con.execute(

@@ -12,11 +12,13 @@ from __future__ import annotations
 import struct
 from array import array
 from bisect import bisect_left, bisect_right
+from collections.abc import Iterator
 from dataclasses import dataclass, field
 from typing import cast
 
 import duckdb
 import orjson
+import pyarrow as pa
 import pyarrow.compute as pa_compute
 import zstandard
 
@@ -104,7 +106,8 @@ class EventBatch:
     def from_block(cls, data: bytes, mutations: list[TreeMutation]) -> EventBatch:
         """The batch of a snapshot row's ``events`` (see ``build_snapshots``), with the
         given mutations of its range."""
-        view = memoryview(zstandard.ZstdDecompressor().decompress(data))
+        raw = zstandard.ZstdDecompressor().decompress(data)
+        view = memoryview(raw)
         (count,) = _BLOCK_HEAD.unpack_from(view)
         at, columns = _BLOCK_HEAD.size, []
         for _name, _sql, code in _BLOCK_COLUMNS:
@@ -113,9 +116,31 @@ class EventBatch:
             values.frombytes(view[at:end])
             columns.append(values.tolist())
             at = end
-        writes = [BlackboardWrite(*row) for row in orjson.loads(view[at:])]
+        writes = [BlackboardWrite(*row) for row in _write_rows_of(raw, at)]
         seq, t_ns, tick, uid, prev, status = columns
         return cls(seq, t_ns, tick, uid, prev, status, writes, mutations)
+
+
+#: A block's writes longer than this are parsed a row at a time: orjson (yyjson) would
+#: reserve several times a document's size to parse it whole.
+_PARSED_WHOLE_BYTES = 8 << 20
+
+
+def _write_rows_of(raw: bytes, at: int) -> list:
+    """The write rows of a block, its JSON list starting at ``raw[at]``. A long one is
+    parsed a row at a time: its rows are one a line (compact JSON has no raw newline)."""
+    if len(raw) - at <= _PARSED_WHOLE_BYTES:
+        return orjson.loads(memoryview(raw)[at:])
+    view, rows = memoryview(raw), []
+    start = raw.find(b"\n", at) + 1
+    if start == 0:  # one line: a block written before rows went one a line
+        return orjson.loads(view[at:])
+    while start < len(raw):
+        end = raw.find(b"\n", start)
+        end = len(raw) - 1 if end < 0 else end - 1  # before the "," (or the last "]")
+        rows.append(orjson.loads(view[start:end]))
+        start = end + 2
+    return rows
 
 
 def _seq_of(event: BlackboardWrite | TreeMutation) -> int:
@@ -142,13 +167,13 @@ _BLOCK_HEAD = struct.Struct("<Q")
 
 
 def event_blocks(
-    con: duckdb.DuckDBPyConnection, run_id: str, every: int, writes: list[str]
+    con: duckdb.DuckDBPyConnection, run_id: str, every: int, count: int
 ) -> list[bytes]:
-    """The ``events`` of each snapshot row (``writes``: each block's write rows as a
-    JSON list), zstd-compressed: the count of status changes (8 bytes), the status
-    changes as fixed-width columns (``_BLOCK_COLUMNS``, native byte order), then the
-    writes. The columns are cut from one Arrow read of ``transitions`` (in seq order,
-    as the rows are stored, or sorted), so nothing is done per row in Python."""
+    """The ``events`` of the ``count`` snapshot rows, zstd-compressed: the count of status
+    changes (8 bytes), the status changes as fixed-width columns (``_BLOCK_COLUMNS``,
+    native byte order), then the writes as a JSON list. The columns are cut from one
+    Arrow read of ``transitions`` (in seq order, as the rows are stored, or sorted), the
+    writes' JSON from DuckDB's (``_write_rows``), so nothing is done per row in Python."""
     columns = ", ".join(f"{sql} AS {name}" for name, sql, _code in _BLOCK_COLUMNS)
     params = {"run_id": run_id, "k": every}
     rows = con.sql(
@@ -173,13 +198,80 @@ def event_blocks(
         values = array.buffers()[1] if len(array) else None
         view = memoryview(b"") if values is None else memoryview(values)
         buffers.append((view[array.offset * width :], width))
-    compress = zstandard.ZstdCompressor(level=1).compress
+    compressor = zstandard.ZstdCompressor(level=1)
+    writes = _write_rows(con, run_id, every)
+    pending = next(writes, None)
     blocks, lo = [], 0
-    for index, written in enumerate(writes):
+    for index in range(count):
         hi = lo + counts.get(index, 0)
         parts: list[bytes | memoryview] = [_BLOCK_HEAD.pack(hi - lo)]
         parts.extend(buffer[lo * width : hi * width] for buffer, width in buffers)
-        parts.append(written.encode())
-        blocks.append(compress(b"".join(parts)))
+        if pending is not None and pending[0] == index:
+            parts.extend(pending[1])
+            pending = next(writes, None)
+        else:
+            parts.append(b"[]")
+        blocks.append(_compressed(compressor, parts))
         lo = hi
     return blocks
+
+
+#: Write rows fetched from DuckDB at a time (a row may hold a value of megabytes).
+_WRITE_ROWS_PER_BATCH = 4096
+
+
+def _write_rows(
+    con: duckdb.DuckDBPyConnection, run_id: str, every: int
+) -> Iterator[tuple[int, list[bytes | memoryview]]]:
+    """(block index, the block's write rows as the parts of one JSON list) for each block
+    with writes, in order. DuckDB writes each row's JSON, preceded by a comma and a
+    newline (so a long block can be parsed a row at a time), and the rows are streamed
+    in small batches: a block's parts are slices of the batches'
+    string buffers, never one string of the whole block."""
+    reader = con.sql(
+        """SELECT seq // $k AS block, ',' || chr(10) || json_array(seq, t_ns, tick, scope, key,
+            value, type, writer_uid)::VARCHAR AS row
+        FROM blackboard WHERE run_id = $run_id ORDER BY seq""",
+        params={"run_id": run_id, "k": every},
+    ).to_arrow_reader(_WRITE_ROWS_PER_BATCH)
+    current: int | None = None
+    parts: list[bytes | memoryview] = []
+    for batch in reader:
+        blocks, texts = batch.column(0), batch.column(1)
+        data = texts.buffers()[2]
+        offsets = memoryview(texts.buffers()[1]).cast(
+            "q" if pa.types.is_large_string(texts.type) else "i"
+        )[texts.offset :]
+        starts = [0, *(pa_compute.indices_nonzero(_changes(blocks)).to_pylist())]
+        for number, first in enumerate(starts):
+            block = blocks[first].as_py()
+            last = starts[number + 1] if number + 1 < len(starts) else len(blocks)
+            if block != current:
+                if current is not None:
+                    yield current, _json_list(parts)
+                current, parts = block, []
+            parts.append(memoryview(data)[offsets[first] : offsets[last]])
+    if current is not None:
+        yield current, _json_list(parts)
+
+
+def _changes(blocks: pa.Array) -> pa.Array:
+    """For each row, whether its block differs from the previous row's (False first)."""
+    if len(blocks) < 2:
+        return pa.array([False] * len(blocks))
+    differs = pa_compute.not_equal(blocks.slice(1), blocks.slice(0, len(blocks) - 1))
+    return pa.concat_arrays([pa.array([False]), differs])
+
+
+def _json_list(parts: list[bytes | memoryview]) -> list[bytes | memoryview]:
+    """Rows each preceded by a comma, as a JSON list: the first comma becomes ``[``."""
+    return [b"[", parts[0][1:], *parts[1:], b"]"]
+
+
+def _compressed(compressor: zstandard.ZstdCompressor, parts: list[bytes | memoryview]) -> bytes:
+    """``parts`` joined and compressed, streamed through the compressor (a block of a
+    few hundred MB of writes is never copied whole)."""
+    stream = compressor.compressobj(size=sum(len(part) for part in parts))
+    out = [stream.compress(part) for part in parts]
+    out.append(stream.flush())
+    return b"".join(out)

@@ -29,10 +29,9 @@ import uuid
 from dataclasses import dataclass
 from pathlib import Path
 
-import duckdb
-
 import btlog
 from btlog.replay import ingest as ingestion
+from btlog.replay.connections import connect
 from btlog.replay.tables import INGEST_VERSION, create_schema
 
 SUFFIX = ".duckdb"
@@ -183,7 +182,7 @@ def build(path: str, cache: Path, snapshot_every: int) -> ingestion.IngestReport
     """
     cache.parent.mkdir(parents=True, exist_ok=True)
     temporary = _temporary(cache)
-    con = duckdb.connect()
+    con = connect()
     try:
         small = os.path.getsize(path) < SMALL_RECORDING
         con.execute(f"ATTACH $path AS cache_file{_blocks(small)}", {"path": str(temporary)})
@@ -210,7 +209,7 @@ def build_snapshots(cache: Path, target: Path) -> float:
     (moved into place when complete); returns the seconds taken. The cache itself is
     only read (other processes may have it open)."""
     temporary = _temporary(target)
-    con = duckdb.connect()
+    con = connect()
     try:
         small = cache.stat().st_size < SMALL_RECORDING * 4
         con.execute("ATTACH $path AS cached (READ_ONLY)", {"path": str(cache)})

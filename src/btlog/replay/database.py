@@ -34,6 +34,7 @@ from btlog.errors import one_line
 from btlog.record.reader import RecordingError
 from btlog.replay import cache
 from btlog.replay import ingest as ingestion
+from btlog.replay.connections import connect
 from btlog.replay.moments import MomentError
 from btlog.replay.run import ReplayError, Run, RunInfo, TimelineEntry
 from btlog.replay.snapshots import DEFAULT_SNAPSHOT_EVERY
@@ -82,7 +83,7 @@ class RunDatabase:
     """Several runs in one DuckDB connection (build it with ``open_runs``)."""
 
     def __init__(self, snapshot_every: int = DEFAULT_SNAPSHOT_EVERY) -> None:
-        self.con = duckdb.connect()
+        self.con = connect(sandbox=True)
         self.snapshot_every = snapshot_every
         self.ingested: list[ingestion.IngestReport] = []
         #: one-line notices for the user (e.g. a cache folder that cannot be written)
@@ -212,7 +213,13 @@ class RunDatabase:
             ).fetchall()
         except duckdb.Error:
             rows = []
-        if rows == [(os.stat(path).st_size, INGEST_VERSION, self.snapshot_every)]:
+        # A run with a large state has its snapshots further apart than asked
+        # (``snapshot_interval``); the cache's name holds the interval asked for.
+        if (
+            len(rows) == 1
+            and rows[0][:2] == (os.stat(path).st_size, INGEST_VERSION)
+            and rows[0][2] >= self.snapshot_every
+        ):
             self._attached.add(place)
             return True
         self.con.execute(f"DETACH {catalog}")

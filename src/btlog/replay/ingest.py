@@ -34,7 +34,7 @@ from btlog.replay.run_tables import (
     short_run_id,
 )
 from btlog.replay.scan import Collected, McapScan
-from btlog.replay.snapshots import DEFAULT_SNAPSHOT_EVERY, build_snapshots
+from btlog.replay.snapshots import DEFAULT_SNAPSHOT_EVERY, build_snapshots, snapshot_interval
 from btlog.replay.tables import INGEST_VERSION, discard_run, first_row, identifier, one_row
 from btlog.tree.model import Tree
 
@@ -91,7 +91,8 @@ def load_tables(
     run_id: str | None = None,
     snapshot_every: int = DEFAULT_SNAPSHOT_EVERY,
 ) -> IngestReport:
-    """Every table of the run but ``_snapshots`` (see ``ingest``)."""
+    """Every table of the run but ``_snapshots`` (see ``ingest``); the snapshots are
+    to be ``snapshot_interval`` events apart, at least ``snapshot_every``."""
     if snapshot_every < 1:
         raise ValueError(f"snapshot_every must be at least 1, got {snapshot_every}")
     started = time.perf_counter()
@@ -118,7 +119,7 @@ def load_tables(
             time.perf_counter() - started,
             0.0,
             0,
-            snapshot_every,
+            snapshot_interval(con, run_id, snapshot_every),
         )
         _insert_ingest(con, report, stat, extent, tree)
     except BaseException:

@@ -7,8 +7,9 @@ over their bytes as they are, statuses checked and taken as the ENUM's codes: no
 parsed. JSON status and tick rows (versions 1 and 2) become CSV with one
 ``bytes.translate`` (``[`` turned into a newline, ``"`` and ``]`` deleted:
 ``[1,2,"IDLE","RUNNING"],`` → ``⏎1,2,IDLE,RUNNING,``) and go through Arrow's
-multithreaded CSV reader; each message's write rows become one
-line of newline-delimited JSON for DuckDB's ``read_json``. Both parsers release the
+multithreaded CSV reader; the write rows of a batch's messages become one JSON array
+that DuckDB's ``read_json`` reads a row at a time (a message of 200,000 writes of 1 KB
+is never one 200 MB value to parse). Both parsers release the
 GIL, so walking, parsing CSV and parsing JSON overlap. Rows these parsers refuse (an
 unknown status, a row of another shape) are decoded with orjson and loaded through
 Arrow instead: slower, never wrong.
@@ -203,28 +204,53 @@ def _canonical_statuses(table: pa.Table) -> pa.Table | None:
     return table
 
 
+#: The longest write row DuckDB's JSON reader is first asked to take (it allocates about
+#: twice this); a batch with a longer row is read again with its longest message's size.
+WRITE_ROW_BYTES = 16 << 20
+
+
 def _load_write_rows(
     con: duckdb.DuckDBPyConnection, run_id: str, lines: list[bytes | memoryview], path: Path
 ) -> None:
-    """Each message's write rows are one JSON line ``{"w":[[…],[…]]}``; DuckDB unnests."""
+    """The write rows of each message (``[…],[…]``, without brackets) are written as
+    one JSON array, which DuckDB reads an element at a time; rows it refuses are
+    decoded with orjson, a message at a time."""
     if not lines:
         return
-    longest = max(len(line) for line in lines) + 1024
     with open(path, "wb") as file:
-        file.write(b'{"w":[' + b']}\n{"w":['.join(lines) + b"]}\n")
+        file.write(b"[")
+        for number, line in enumerate(lines):
+            if number:
+                file.write(b",")
+            file.write(line)
+        file.write(b"]")
+    longest = max(len(line) for line in lines) + 1024  # no row is longer than its message
     try:
-        con.execute(
-            """INSERT INTO blackboard
-            SELECT $run_id, r[1]::BIGINT, r[2]::BIGINT, r[3]::BIGINT, r[4] ->> '$',
-                   r[5] ->> '$', coalesce(r[6], 'null'::JSON), r[7] ->> '$', r[8]::INTEGER
-            FROM (SELECT unnest(w) AS r FROM read_json($path, format = 'newline_delimited',
-                  columns = {'w': 'JSON[][]'}, maximum_object_size = $longest))""",
-            {"run_id": run_id, "path": str(path), "longest": max(longest, 1 << 20)},
-        )
+        for bound in sorted({min(WRITE_ROW_BYTES, longest), longest}):
+            try:
+                _read_write_rows(con, run_id, path, bound)
+                return
+            except duckdb.Error:
+                if bound == longest:
+                    raise
+        return
     except duckdb.Error:
-        _insert_write_rows(con, run_id, orjson.loads(b"[" + b",".join(lines) + b"]"))
+        for line in lines:
+            _insert_write_rows(con, run_id, orjson.loads(b"[" + bytes(line) + b"]"))
     finally:
         path.unlink()
+
+
+def _read_write_rows(con: duckdb.DuckDBPyConnection, run_id: str, path: Path, bound: int) -> None:
+    """Insert the write rows of the JSON array in ``path``, none longer than ``bound``."""
+    con.execute(
+        """INSERT INTO blackboard
+        SELECT $run_id, r[1]::BIGINT, r[2]::BIGINT, r[3]::BIGINT, r[4] ->> '$',
+               r[5] ->> '$', coalesce(r[6], 'null'::JSON), r[7] ->> '$', r[8]::INTEGER
+        FROM (SELECT json AS r FROM read_json($path, format = 'array', records = false,
+              columns = {'json': 'JSON[]'}, maximum_object_size = $bound))""",
+        {"run_id": run_id, "path": str(path), "bound": max(bound, 1 << 20)},
+    )
 
 
 def _insert_status_rows(con: duckdb.DuckDBPyConnection, run_id: str, rows: list[list]) -> None:

@@ -11,6 +11,10 @@ definition of the state: a property test keeps the SQL snapshots equal to its fo
 Each row also holds its block of events (``btlog.replay.blocks``), so the state at any
 moment is one snapshot row plus a fold of at most ``snapshot_every`` events
 (``btlog.replay.run``).
+
+A run's snapshots are ``snapshot_interval`` events apart: the interval asked for, or more
+for a run whose state is large (a wide tree, a big blackboard), so that their total size
+stays linear in the run's length (``STATE_BYTES_PER_EVENT``), never states x boundaries.
 """
 
 from __future__ import annotations
@@ -38,6 +42,44 @@ DEFAULT_SNAPSHOT_EVERY = 512
 #: a snapshot names the write that set them (its seq), and loading it reads that one row
 #: of ``blackboard``, so a large value is stored and loaded once, not once per snapshot.
 INLINE_VALUE_BYTES = 4096
+#: Bytes of snapshot state stored per event of the run, at most (besides the first
+#: snapshot): a state of S bytes gets snapshots every S / 64 events or more. Folding an
+#: event costs about as much as decoding 64 bytes of a snapshot, so a moment still costs
+#: about as much as reading one state, and 150,000 nodes or 200 MB of blackboard values
+#: are stored a few times, not once every 512 events (issue 24).
+STATE_BYTES_PER_EVENT = 64
+#: Bytes of one node's entries in a snapshot (status, activation, last failure).
+_NODE_STATE_BYTES = 48
+#: Bytes of a blackboard entry besides its key and value (quotes, scope, separators).
+_ENTRY_STATE_BYTES = 8
+
+
+def snapshot_interval(
+    con: duckdb.DuckDBPyConnection, run_id: str, requested: int, prefix: str = ""
+) -> int:
+    """The events between two snapshots of the run loaded in ``con``: ``requested``, or
+    the bytes its largest state may take (``state_bytes``) over ``STATE_BYTES_PER_EVENT``
+    when that is more than the default interval (a small state is stored as often as
+    asked)."""
+    spread = -(-state_bytes(con, run_id, prefix) // STATE_BYTES_PER_EVENT)
+    return max(requested, spread) if spread > DEFAULT_SNAPSHOT_EVERY else requested
+
+
+def state_bytes(con: duckdb.DuckDBPyConnection, run_id: str, prefix: str = "") -> int:
+    """A bound on the bytes of any snapshot of the run: every node (mutations'
+    included) with its three entries, every blackboard key with its longest value as a
+    snapshot stores it (a large value is named by its seq, see ``INLINE_VALUE_BYTES``)."""
+    (nodes,) = con.execute(
+        f"SELECT count(*) FROM {prefix}nodes WHERE run_id = $run_id", {"run_id": run_id}
+    ).fetchone() or (0,)
+    (entries,) = con.execute(
+        f"""SELECT coalesce(sum(strlen(scope) + strlen(key) + $extra
+                + CASE WHEN longest > $large THEN 20 ELSE longest END), 0)
+        FROM (SELECT scope, key, max(strlen(value::VARCHAR)) AS longest
+              FROM {prefix}blackboard WHERE run_id = $run_id GROUP BY scope, key)""",
+        {"run_id": run_id, "extra": _ENTRY_STATE_BYTES, "large": INLINE_VALUE_BYTES},
+    ).fetchone() or (0,)
+    return int(nodes) * _NODE_STATE_BYTES + int(entries)
 
 
 def load_mutations(
@@ -98,9 +140,8 @@ def snapshot_rows(
         rows = con.sql(SNAPSHOTS_SQL.format(retry_view=view), params=params).to_arrow_table()
     finally:
         con.unregister(view)
-    blocks = event_blocks(con, run_id, every, rows["write_block"].to_pylist())
-    table = rows.drop_columns(["write_block"])
-    return table.append_column("events", pa.array(blocks, pa.binary()))
+    blocks = event_blocks(con, run_id, every, rows.num_rows)
+    return rows.append_column("events", pa.array(blocks, pa.binary()))
 
 
 def _latest(name: str, where: str, partition: str, value: str) -> str:
@@ -176,11 +217,6 @@ SNAPSHOTS_SQL = (
         SELECT seq, t_ns, tick FROM transitions WHERE run_id = $run_id
         UNION ALL SELECT seq, t_ns, tick FROM blackboard WHERE run_id = $run_id
         UNION ALL SELECT seq, t_ns, tick FROM _mutations WHERE run_id = $run_id),
-    write_blocks AS (
-        SELECT seq // $k * $k AS b,
-            list(json_array(seq, t_ns, tick, scope, key, value, type, writer_uid)
-                ORDER BY seq)::JSON AS block
-        FROM blackboard WHERE run_id = $run_id GROUP BY ALL),
     last_in AS (
         SELECT (seq // $k + 1) * $k AS b, max(seq) + 1 AS seq, arg_max(t_ns, seq) AS t_ns,
             arg_max(tick, seq) AS tick
@@ -205,8 +241,7 @@ SNAPSHOTS_SQL = (
             'retry_attempts', coalesce(r.attempts, '{{}}')::JSON,
             'last_leaf', leaf.v,
             'blackboard', coalesce(bb.blackboard, '{{}}'::JSON),
-            'blackboard_refs', rf.refs, 'halted', hl.v)::VARCHAR AS state,
-        coalesce(wb.block, '[]')::VARCHAR AS write_block
+            'blackboard_refs', rf.refs, 'halted', hl.v)::VARCHAR AS state
     FROM bounds
     LEFT JOIN last_event l USING (b)
     LEFT JOIN first_event f USING (b)
@@ -218,7 +253,6 @@ SNAPSHOTS_SQL = (
     LEFT JOIN halted_at hl ON hl.b = bounds.b
     LEFT JOIN boards bb ON bb.b = bounds.b
     LEFT JOIN refs rf ON rf.b = bounds.b
-    LEFT JOIN write_blocks wb ON wb.b = bounds.b
     ORDER BY bounds.b"""
 )
 
