@@ -145,6 +145,13 @@ CASES: dict[str, tuple[str, dict]] = {
         "</Sequence>",
         {},
     ),
+    "a port's entry exists, empty, from the start: = assigns it": (
+        '<Sequence name="s"><Script name="set" code="x = 5"/>'
+        '<ScriptCondition name="chk" code="x == 5"/>'
+        '<LoopInt name="L" queue="1;2" value="{x}"><AlwaysSuccess name="ok"/></LoopInt>'
+        "</Sequence>",
+        {},
+    ),
     "WaitValueUpdate waits for a write": (
         '<Parallel name="p" success_count="2"><WaitValueUpdate name="u" entry="{x}">'
         + act("a")

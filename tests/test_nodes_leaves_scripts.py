@@ -59,6 +59,7 @@ from tests.nodes_support import (
         ("a:=false", "!a"),
         ("a:=true", "a + 1 == 2"),
         ("s:='ab'", "s .. 'cd' == 'abcd'"),
+        ("s:='5'", "s + '1' == '51'"),  # + joins two strings, numbers or not (BT.CPP)
         ("s:='ab'", "s == 'ab' &amp;&amp; s != 'ba'"),
         ("s:='abc'", "s &lt; 'abd'"),
         ("a:=1", "a .. 'x' == '1x'"),

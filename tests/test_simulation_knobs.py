@@ -126,7 +126,7 @@ def test_an_undeclared_type_with_children_is_refused_naming_what_btcpp_needs(
     assert_bad_input(
         btlog("validate", path),
         "undeclared.xml:8: unknown node type 'WaitForEvent' with children",
-        "BT.CPP would need the plugin that registers it",
+        "BT.CPP would need the code that registers it (a plugin, or the program's",
         "<TreeNodesModel>",
     )
 
@@ -176,3 +176,21 @@ def test_a_leaf_halted_many_times_before_finishing(tmp_path: Path) -> None:
     result = btlog("run", path, "--outcomes", outcomes, "-o", tmp_path / "t.mcap")
     assert "final status: SUCCESS" in result.stdout
     assert "'follow path' was halted 149 times before it finished" in result.stderr
+
+
+def test_a_run_stopped_inside_an_endless_loop_says_what_would_end_it(tmp_path: Path) -> None:
+    path = tmp_path / "loop.xml"
+    path.write_text(
+        '<root BTCPP_format="4"><BehaviorTree ID="M"><KeepRunningUntilFailure name="patrol">'
+        '<Sequence><Action ID="Patrol"/></Sequence></KeepRunningUntilFailure></BehaviorTree></root>'
+    )
+    result = btlog("run", path, "--max-ticks", "30", "-o", tmp_path / "loop.mcap")
+    assert result.returncode == 0, result.stderr
+    assert (
+        "KeepRunningUntilFailure 'patrol' was still looping: it ends only when its child "
+        "fails (script that result in the outcomes file to end the run)"
+    ) in result.stderr
+    outcomes = tmp_path / "o.yaml"
+    outcomes.write_text("nodes: {Patrol: [SUCCESS, FAILURE]}")
+    ended = btlog("run", path, "--outcomes", outcomes, "-o", tmp_path / "ended.mcap")
+    assert "final status: FAILURE" in ended.stdout and "looping" not in ended.stderr

@@ -22,6 +22,7 @@ from typing import Any
 
 from btlog import SCHEMA_VERSION, __version__, limits
 from btlog.domains import make_domain
+from btlog.domains.halts import endless_loop_warnings
 from btlog.domains.outcomes import (
     FailSpec,
     Outcomes,
@@ -281,6 +282,7 @@ def execute(
     try:
         status = executor.run(config.max_ticks, before_tick)
         ticks = executor.runtime.tick
+        looping = [] if status.completed else endless_loop_warnings(executor.behaviors)
         executor.teardown()  # BT.CPP halts the tree it destroys; the answers at end see it
         if live is not None:
             live.finish()
@@ -304,6 +306,7 @@ def execute(
         [
             *tree.warnings,
             *halt_warnings(executor),
+            *looping,
             *outcomes.unapplied(executor.tree, activations),
             *(f"{config.descriptions_file}: {key!r} names no node" for key in prepared.undescribed),
         ],

@@ -1,4 +1,4 @@
-"""Livelocks of simulated runs: a scripted leaf halted and restarted over and over.
+"""Why a simulated run did not finish: livelocks, and loops that end only on a failure.
 
 With scripted leaves a tree can go round in circles that a real robot would not: under a
 ReactiveSequence, a scripted action placed where BT.CPP programs put a condition (that
@@ -8,7 +8,9 @@ with "No failures" to tell. Each scripted leaf counts its halts since it last fi
 when it is halted, the node that caused it is looked up (the nearest ancestor with another
 child RUNNING, and the execution node RUNNING in that child). After the run, a leaf halted
 ``HALTS_WORTH_A_WARNING`` times or more in a row gets one warning naming both and the hint
-that fits.
+that fits. A run stopped by ``--max-ticks`` inside a loop that only a failure (or a
+success) ends — KeepRunningUntilFailure, Repeat or RetryUntilSuccessful without a limit —
+says so too: with scripted leaves that always succeed, it never ends.
 """
 
 from __future__ import annotations
@@ -102,8 +104,41 @@ def _hint(node: Node, cause: HaltCause | None, scripted: Mapping[int, bool]) -> 
     if running.is_execution and scripted.get(running.uid):
         what = "condition" if running.kind == CONDITION else "action"
         return (
-            f"{said}; {running.description!r} is a scripted {what} that takes time, where BT.CPP "
-            "trees usually have a condition that answers at once: give it duration 0 in the "
-            "outcomes file, or declare it a condition (--nodes-model)"
+            f"{said}; {running.description!r} is a scripted {what} that takes time, where a "
+            "reactive control expects one that answers in its tick (a condition, or a "
+            "synchronous action): give it duration 0 in the outcomes file, or declare it a "
+            "condition (--nodes-model)"
         )
     return f"{said} every time, before {node.description!r} can finish"
+
+
+#: Loops that end only when their child fails (or succeeds), with what ends them.
+ENDLESS: dict[str, tuple[str | None, str]] = {
+    "KeepRunningUntilFailure": (None, "its child fails"),
+    "Repeat": ("num_cycles", "its child fails"),
+    "RetryUntilSuccessful": ("num_attempts", "its child succeeds"),
+}
+
+
+def endless_loop_warnings(behaviors: Mapping[int, Behavior]) -> list[str]:
+    """For a run stopped while RUNNING: the outermost unbounded loops still running, each
+    with what would end it."""
+    warnings = []
+    for behavior in behaviors.values():
+        node = behavior.node
+        rule = ENDLESS.get(node.type)
+        if rule is None or behavior.status is not RUNNING:
+            continue
+        port, ends = rule
+        if port is not None:
+            limit = node.ports.get(port)
+            if limit is None or limit.value.strip() != "-1":
+                continue
+        outer = [a for a in node.ancestors() if a.type in ENDLESS]
+        if any(behaviors[a.uid].status is RUNNING for a in outer if a.uid in behaviors):
+            continue
+        warnings.append(
+            f"{node.type} {node.description!r} was still looping: it ends only when {ends} "
+            "(script that result in the outcomes file to end the run)"
+        )
+    return warnings

@@ -38,6 +38,10 @@ class Blackboard:
         #: how many times each entry was written (BT.CPP's ``sequence_id``, which
         #: WasEntryUpdated, SkipUnlessUpdated and WaitValueUpdate compare)
         self.versions: dict[str, int] = {}
+        #: keys a node's port names (``{key}``) that have no value yet: BT.CPP creates
+        #: such entries, empty, when it creates the tree, so a script may assign them
+        #: with ``=``
+        self.declared_keys: set[str] = set()
         self.on_write: WriteSink | None = None
         self.root: Blackboard = self if parent is None else parent.root
 
@@ -93,6 +97,18 @@ class Blackboard:
         sink = self.root.on_write
         if sink is not None:
             sink(board.scope, resolved, UNSET, writer)
+
+    def declare(self, key: str) -> None:
+        """Create the entry ``key`` empty, where BT.CPP creates it for a port at tree
+        creation (through remaps), unless it exists."""
+        board, resolved, found = self._resolve(key)
+        if not found:
+            board.declared_keys.add(resolved)
+
+    def declared(self, key: str) -> bool:
+        """True when ``key`` resolves to an entry created empty (``declare``)."""
+        board, resolved, found = self._resolve(key)
+        return found or resolved in board.declared_keys
 
     def preset(self, key: str, value: Any) -> None:
         """Write ``key`` in this very scope before the run starts, unreported (the executor
@@ -160,6 +176,10 @@ class BoundBlackboard:
     def exists(self, key: str) -> bool:
         """True when ``key`` resolves to an entry."""
         return self.board.exists(key)
+
+    def declared(self, key: str) -> bool:
+        """True when ``key`` resolves to an entry, set or created empty by a port."""
+        return self.board.declared(key)
 
     def set(self, key: str, value: Any) -> None:
         """Write ``key`` as this node."""

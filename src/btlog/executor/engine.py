@@ -111,6 +111,11 @@ class Executor:
             behavior = cls(node, self.runtime, board)
             behavior.children = [self._build(child, board) for child in node.children]
         behavior.check_ports()
+        if node.kind != SUBTREE:
+            for name, port in node.ports.items():
+                key = port.key
+                if key is not None:
+                    board.declare(name if key == "=" else key)
         if self._batch is not None:  # a subtree inserted while a recorder listens
             behavior.changes = change_rows(node.uid)
         self.behaviors[node.uid] = behavior

@@ -166,8 +166,9 @@ class TreeBuilder:
             if children:
                 raise TreeError(
                     f"unknown node type {type_id!r} with children: BT.CPP would need the "
-                    "plugin that registers it; declared in a <TreeNodesModel> (the tree's, "
-                    "or --nodes-model) it runs as a pass-through",
+                    "code that registers it (a plugin, or the program's registerNodeType); "
+                    "declared in a <TreeNodesModel> (the tree's, or --nodes-model) it runs "
+                    "as a pass-through",
                     file,
                     line,
                 )
@@ -250,7 +251,12 @@ class TreeBuilder:
         if element.children:
             raise TreeError(f"<SubTree ID={subtree_id!r}> must not have children", file, line)
         if subtree_id not in self.documents.definitions:
-            raise TreeError(f"subtree {subtree_id!r} is not defined", file, line)
+            raise TreeError(
+                f"subtree {subtree_id!r} is not defined: BT.CPP would need the file that "
+                "defines it registered too (--trees FILE or FOLDER) or <include>d",
+                file,
+                line,
+            )
         ancestors = context.ancestors
         if subtree_id in ancestors:
             chain = " -> ".join((*ancestors[ancestors.index(subtree_id) :], subtree_id))

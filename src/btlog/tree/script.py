@@ -2,13 +2,15 @@
 the ``_skipIf``/``_onSuccess``… attributes.
 
 Supported: statements separated by ``;``; assignment ``:=`` (creates the entry), ``=``
-(the entry must exist), ``+=``, ``-=``, ``*=``, ``/=``; arithmetic ``+ - * /``, string
-concatenation ``..``; comparisons ``== != < <= > >=``; logic ``&& || !`` (also ``and``,
+(the entry must exist, or be one a port names: BT.CPP creates those with the tree),
+``+=``, ``-=``, ``*=``, ``/=``; arithmetic ``+ - * /``, string concatenation ``..`` (and
+``+`` of two strings); comparisons ``== != < <= > >=``; logic ``&& || !`` (also ``and``,
 ``or``, ``not``); bitwise ``& | ^ ~``; the ternary ``c ? a : b``; numbers (integers,
 decimals, hex), strings in single or double quotes, ``true``/``false``, and blackboard
 keys (``@key`` for the root blackboard). Scripts are compiled once into closures.
 
-A script runs in an environment with ``get(key)``, ``set(key, value)``, ``exists(key)``.
+A script runs in an environment with ``get(key)``, ``set(key, value)``, ``exists(key)``
+and ``declared(key)``.
 
 Scripts come from untrusted XML, so they are bounded (``btlog.limits``): the code's
 length and nesting when compiled, and while running the length of a string built with
@@ -41,6 +43,7 @@ class Environment(Protocol):
     def get(self, key: str) -> Any: ...
     def set(self, key: str, value: Any) -> None: ...
     def exists(self, key: str) -> bool: ...
+    def declared(self, key: str) -> bool: ...
 
 
 _TOKEN = re.compile(
@@ -140,6 +143,8 @@ def _bounded(value: Any) -> Any:
 
 
 def _add(a: Any, b: Any) -> Any:
+    if isinstance(a, str) and isinstance(b, str):
+        return _concatenate(a, b)  # BT.CPP joins two strings with + too
     return _bounded(_to_number(a) + _to_number(b))
 
 
@@ -348,7 +353,7 @@ def _assignment(key: str, op: str, value: Expr) -> Expr:
         if op == ":=":
             env.set(key, new)
             return new
-        if not env.exists(key):
+        if not env.exists(key) and not env.declared(key):
             raise ScriptError(f"variable {key!r} does not exist; use := to create it")
         if op != "=":
             new = _BINARY[op[0]](env.get(key), new)
