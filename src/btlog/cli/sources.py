@@ -18,13 +18,16 @@ def add_parsers(commands: argparse._SubParsersAction) -> None:
     """Add ``import``, ``attach`` and ``export`` to the command line."""
     imp = commands.add_parser(
         "import",
-        help="import a BT.CPP log (FileLogger2 .btlog, SqliteLogger .db3/.btdb) or a Nav2 bag",
+        help="import a BT.CPP log (FileLogger2 .btlog, v3 FileLogger .fbl, SqliteLogger "
+        ".db3/.btdb) or a Nav2 bag",
         description="Turn a BehaviorTree.CPP log, or a Nav2 rosbag2 bag (MCAP or SQLite, "
         "a folder or one file) with /behavior_tree_log, into btlog recordings (format from "
         "content).",
     )
     imp.add_argument(
-        "file", metavar="FILE", help=".btlog, .db3, .btdb file, or a rosbag2 folder/.mcap/.db3"
+        "file",
+        metavar="FILE",
+        help=".btlog, .fbl, .db3, .btdb file, or a rosbag2 folder/.mcap/.db3",
     )
     imp.add_argument("-o", "--output", metavar="OUT", help="recording to write (FILE.mcap)")
     imp.add_argument("--tree", metavar="XML", help="the tree file (checked against the log's)")
@@ -155,6 +158,12 @@ def import_(args: Namespace) -> int:
         if not args.output:
             default = Path(f"{Path(args.file).stem}-btlog.mcap")
         results = import_bag(args.file, default, args.tree, registry, args.goal, gap)
+    elif kind == "btcpp-fbl":
+        from btlog.sources.btcpp_fbl import import_fbl
+
+        if args.session is not None:
+            raise ValueError(f"{args.file}: --session applies to SQLite logs only")
+        results = [import_fbl(args.file, default, args.tree, registry, gap)]
     elif kind == "btcpp-filelog2":
         from btlog.sources.btcpp_filelog import import_filelog
 

@@ -6,7 +6,8 @@ small module of its own.
 - Sources turn another tool's log into an ordinary btlog recording through the one
   ``RecordingBuilder`` (``btlog.sources.builder``): a tree, a stream of transitions
   with times, optional blackboard writes, and where it came from. BT.CPP's FileLogger2
-  (``btcpp_filelog``) and SQLite logger (``btcpp_sqlite``) files are imported; a running
+  (``btcpp_filelog``), SQLite logger (``btcpp_sqlite``) and v3 FileLogger (``btcpp_fbl``)
+  files are imported; a running
   BT.CPP process is recorded live through the Groot2 protocol (``groot2``).
   ``btcpp_tree`` reads the tree XML BT.CPP writes for its loggers. ``rosbag2`` reads
   ROS 2 bags (MCAP or SQLite storage); Nav2's ``/behavior_tree_log`` is imported from
@@ -30,8 +31,9 @@ MCAP_MAGIC = b"\x89MCAP0\r\n"
 
 def detect(path: str | os.PathLike) -> str:
     """The import format of ``path``: ``"rosbag2"`` (a bag folder, an MCAP file, a
-    SQLite file with rosbag2's tables, a ``.zstd`` storage file), ``"btcpp-filelog2"``
-    or ``"btcpp-sqlite"`` (any other SQLite file: ``btcpp_sqlite`` checks its tables)."""
+    SQLite file with rosbag2's tables, a ``.zstd`` storage file), ``"btcpp-filelog2"``,
+    ``"btcpp-sqlite"`` (any other SQLite file: ``btcpp_sqlite`` checks its tables) or
+    ``"btcpp-fbl"`` (BT.CPP 3's FileLogger: a ``.fbl`` name, or a header that fits)."""
     from btlog.sources.rosbag2 import is_rosbag2_sqlite, storage_of
 
     if os.path.isdir(path):
@@ -47,8 +49,23 @@ def detect(path: str | os.PathLike) -> str:
         return "rosbag2" if is_rosbag2_sqlite(path) else "btcpp-sqlite"
     if storage_of(path) is not None:
         return "rosbag2"
+    if os.fspath(path).endswith(".fbl") or _fbl_header(head, os.path.getsize(path)):
+        return "btcpp-fbl"
     raise SourceError(
         f"{os.fspath(path)}: not a BT.CPP log or a rosbag2 bag (no 'BTCPP4-FileLogger2' "
-        "or MCAP magic, not SQLite); "
+        "or MCAP magic, not SQLite, not a v3 FileLogger header); "
         f"first bytes {head[:18]!r}"
     )
+
+
+def _fbl_header(head: bytes, size: int) -> bool:
+    """Whether ``head`` starts like a BT.CPP v3 FileLogger file (which has no magic): an
+    i32 header size that fits the file, then a flatbuffer's root offset inside it, and
+    transitions of 12 bytes after it."""
+    if len(head) < 12:
+        return False
+    length, root = (
+        int.from_bytes(head[:4], "little", signed=True),
+        int.from_bytes(head[4:8], "little"),
+    )
+    return 8 <= length <= size - 4 and 4 <= root < length and (size - 4 - length) % 12 == 0

@@ -13,7 +13,9 @@ Ticks are inferred, because BT.CPP's loggers record transitions, not ticks. The 
 1. a new tick starts at the first transition, and at the first transition after the
    root returned to IDLE (BT.CPP resets a finished root at the end of its tick) or
    after the root completed (SUCCESS/FAILURE) when the source logs no reset;
-2. a root that leaves IDLE starts a new tick;
+2. a root that leaves IDLE starts a new tick, unless the tick began with the root IDLE
+   and the root's change comes within ``tick_gap_ns`` (a root that sets its status
+   after ticking its children, as Nav2's PipelineSequence does);
 3. while the root stays RUNNING (it logs nothing then), a new tick starts at a new
    timestamp group: a transition more than ``tick_gap_ns`` (default 1 ms) after the
    previous one. Ticks in which nothing changed leave no trace and are not counted.
@@ -96,6 +98,20 @@ def state_at_first_entry(tree: Tree, first: Mapping[int, Status]) -> dict[int, S
                 state[node.uid] = RUNNING
             node = node.parent
     return state
+
+
+def omitted_changes(
+    changes: Iterable[tuple[int, Status, Status]], began: Mapping[int, Status]
+) -> int:
+    """How many of ``changes`` (uid, previous status, status), from the state ``began``,
+    name a previous status their node's earlier changes did not leave it in: the changes
+    ``RecordingBuilder.logged`` adds."""
+    status = dict(began)
+    count = 0
+    for uid, prev, new in changes:
+        count += prev is not status.get(uid, IDLE)
+        status[uid] = new
+    return count
 
 
 @dataclass
@@ -204,6 +220,14 @@ class RecordingBuilder:
         if count:
             self._boundary = True
         return count
+
+    def logged(self, t_ns: int, uid: int, prev: Status, status: Status) -> None:
+        """A change as a log states it, from ``prev``: when the node is not in ``prev``,
+        the change the log left out (to ``prev``: a reset to IDLE a logger did not
+        report) comes first, at the same time (``omitted_changes`` counts them)."""
+        if uid in self._status and self._status[uid] is not prev:
+            self.transition(t_ns, uid, prev)
+        self.transition(t_ns, uid, status, prev)
 
     def subscribe(self, subscriber: Subscriber) -> None:
         """Deliver every later event and tick to ``subscriber`` too."""
@@ -337,7 +361,10 @@ class RecordingBuilder:
             return True
         if uid == self._root:
             if old == IDLE:
-                return True
+                # a root that sets its status after ticking its children (Nav2's
+                # PipelineSequence) leaves IDLE within the tick that began with it IDLE
+                gap = t_ns - self._last_transition_t
+                return not (self._tick_result == IDLE and gap <= self.tick_gap_ns)
             if status == IDLE:
                 return False  # the reset of a finished root ends its tick
         if self._root_done:

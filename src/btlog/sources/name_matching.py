@@ -7,7 +7,9 @@ default trees give a RecoveryNode the name of the action it recovers
 that the log is a sequence of transitions BehaviorTree.CPP could have made:
 
 - **chain**: an entry's previous status is the node's status (what the node's earlier
-  entries left; a node's first entry tells the state the log began in);
+  entries left; a node's first entry tells the state the log began in). A log that
+  leaves out resets to IDLE (fewer than one per ``SILENT_RESETS`` completions: Nav2
+  with ``bt_log_idle_transitions`` false) may start a completed node from IDLE;
 - **structure**, as BT.CPP changes statuses: a node leaves IDLE or completes only
   within its parent's tick, so when it does while its parent is not RUNNING (IDLE: a
   PipelineSequence sets its own status after ticking its children, while most controls
@@ -49,6 +51,7 @@ from dataclasses import dataclass
 from btlog.sources.builder import SourceError
 from btlog.status import FAILURE, IDLE, RUNNING, SUCCESS, Status
 from btlog.tree.model import Node, Tree
+from btlog.tree.registry import V3_ALIASES
 
 #: A node of a shared name whose status the log has not told yet.
 UNKNOWN = -1
@@ -90,6 +93,8 @@ ONE_RUNNING = frozenset(
 #: failed condition so when it has no else branch, a SequenceWithMemory its succeeded
 #: children when it fails; Nav2's RateController resets its child after it completes.
 LEAVES_CHILDREN = frozenset({"IfThenElse", "SequenceWithMemory", "SequenceStar", "RateController"})
+#: A log with fewer resets to IDLE than one per this many completions leaves them out.
+SILENT_RESETS = 10
 #: A reading more structure violations than this behind the best one is dropped.
 MARGIN = 2
 #: At most this many readings are followed at once; more, and the log is refused.
@@ -134,12 +139,22 @@ def _differ(a: _Path | None, b: _Path | None) -> list[tuple[int, int, int]]:
     return found
 
 
+def logged_names(node: Node) -> set[str]:
+    """The names BT.CPP logs a node by: its name, or, nameless, its registration ID as
+    the XML wrote it (BT.CPP 3's ``SequenceStar``, btlog's ``SequenceWithMemory``)."""
+    names = {node.description}
+    if node.name in ("", node.type):
+        names |= {alias for alias, target in V3_ALIASES.items() if target == node.type}
+    return names
+
+
 def match_names(entries: Sequence[Entry], tree: Tree, where: str) -> list[int]:
     """The uid of each entry (see the module docstring); ``SourceError`` naming the file
     when a name is not in the tree, or when shared names cannot be told apart."""
     groups: dict[str, list[int]] = {}
     for node in tree:
-        groups.setdefault(node.description, []).append(node.uid)
+        for name in logged_names(node):
+            groups.setdefault(name, []).append(node.uid)
     for entry in entries:
         if entry.name not in groups:
             raise SourceError(
@@ -211,6 +226,12 @@ class _Matcher:
                 seen.add(uid)
                 self.initial[uid] = int(entry.prev)
         self.status = dict(self.initial)
+        # a log that leaves out resets to IDLE (Nav2's bt_log_idle_transitions false):
+        # a completed node's next entry starts from IDLE, and completing nodes may keep
+        # completed children
+        resets = sum(1 for e in entries if e.status == IDLE)
+        completions = sum(1 for e in entries if e.status in (SUCCESS, FAILURE))
+        self.silent_resets = completions > 0 and resets * SILENT_RESETS < completions
 
     # -- one step -------------------------------------------------------------------------
     def _of(self, uid: int, statuses: Sequence[int]) -> int:
@@ -247,7 +268,7 @@ class _Matcher:
         now = self._of(uid, statuses)
         if now == UNKNOWN:
             cost += self._pin(statuses, uid, prev)
-        elif now != prev:
+        elif now != prev and not (self.silent_resets and prev == IDLE and now > RUNNING):
             cost += _CHAIN
         kids = self.children[uid]
         if new != RUNNING and kids and uid not in self.leaves_children:
@@ -255,7 +276,7 @@ class _Matcher:
                 status = self._of(child, statuses)
                 if status == UNKNOWN:  # it completes or resets: its children are IDLE
                     self._pin(statuses, child, int(IDLE))
-                elif status > IDLE:
+                elif status == RUNNING or (status > IDLE and not self.silent_resets):
                     cost += _STRUCTURE
                     break
         parent_uid = self.parent[uid]
@@ -324,9 +345,10 @@ class _Matcher:
         """The entries two equally good readings disagree on, and whether ``a`` is the
         one to keep. Two readings that make the same transitions in each tick, in another
         order, leave no doubt (a control and its child both leaving IDLE: which came
-        first changes no state between ticks); the kept one gives the earlier entry to
-        the node first in the tree (BT.CPP's controls set RUNNING before they tick a
-        child)."""
+        first changes no state between ticks); the kept one has BT.CPP's order: a
+        control's RUNNING before its descendant's (it sets RUNNING before it ticks a
+        child), a descendant's result or reset before its ancestor's, else the node
+        first in the tree first."""
         differ = _differ(a, b)
         if not differ:
             return set(), False
@@ -335,7 +357,13 @@ class _Matcher:
         theirs = sorted((group[i].group, y, group[i].prev, group[i].status) for i, _, y in differ)
         if mine != theirs:
             return {i for i, _x, _y in differ}, False
-        _first, x, y = differ[-1]
+        first, x, y = differ[-1]
+        entry = self.entries[first]
+        if entry.prev == IDLE and entry.status == RUNNING:  # a control sets RUNNING first
+            return set(), self.first[x] < self.first[y]
+        # a node completes or resets after its children (and a Parallel's in order)
+        if self._inside(x, y) or self._inside(y, x):
+            return set(), self.first[x] > self.first[y]
         return set(), self.first[x] < self.first[y]
 
     def run(self) -> list[int]:

@@ -34,10 +34,11 @@ from btlog.sources.builder import (
     RecordingBuilder,
     Source,
     SourceError,
+    omitted_changes,
     state_at_first_entry,
     wall_start,
 )
-from btlog.sources.name_matching import Entry, match_names
+from btlog.sources.name_matching import Entry, logged_names, match_names
 from btlog.sources.rosbag2 import open_bag
 from btlog.status import FAILURE, IDLE, SUCCESS, Status
 from btlog.tree.loader import TreeError, load_tree
@@ -55,6 +56,10 @@ MID_RUN = (
     "the log begins mid-run (the recorder started after the goal did): the state at its "
     "first entry is inferred (each node's previous status in its first entry, RUNNING for "
     "their other ancestors) and recorded as the first tick"
+)
+OMITTED = (
+    "changes the log leaves out were added, each at the time of the entry whose previous "
+    "status shows it (resets to IDLE, when Nav2 runs with bt_log_idle_transitions false)"
 )
 INCOMPLETE = (
     "the bag ends before this goal's result: Nav2 publishes /behavior_tree_log only "
@@ -175,7 +180,7 @@ def match_uids(entries: list[LogEntry], tree: Tree, where: str) -> tuple[list[in
         for entry in {(e.uid, e.name): e for e in entries}.values():
             node = tree.nodes.get(entry.uid or 0)
             # BT.CPP names a nameless node by its ID (btlog's description); '' is older
-            if node is None or entry.name not in (node.description, node.name):
+            if node is None or entry.name not in logged_names(node) | {node.name}:
                 there = "no such node" if node is None else f"it is {node.name!r}"
                 raise SourceError(
                     f"{where}: the log's node {entry.name!r} has uid {entry.uid}, but in the "
@@ -274,6 +279,9 @@ def _build(
     metadata = {} if goal.complete else {"incomplete": INCOMPLETE}
     if began:
         metadata["mid_run"] = MID_RUN
+    omitted = omitted_changes(((u, e.prev, e.status) for e, u in goal.entries), began)
+    if omitted:
+        metadata["omitted"] = f"{omitted} {OMITTED}"
     notes: list[str] = []
     builder = RecordingBuilder(
         output,
@@ -290,12 +298,14 @@ def _build(
             count = builder.begin_mid_run(began)
             builder.warnings.append(f"goal {goal.index}: {MID_RUN} ({count} nodes not IDLE)")
         for entry, uid in goal.entries:
-            builder.transition(entry.t_ns - start, uid, entry.status, entry.prev)
+            builder.logged(entry.t_ns - start, uid, entry.prev, entry.status)
     except BaseException:
         builder.close()
         output.unlink(missing_ok=True)
         raise
     builder.warnings.extend(warnings)
+    if omitted:
+        builder.warnings.append(f"goal {goal.index}: {omitted} {OMITTED}")
     if not goal.complete:
         builder.warnings.append(f"goal {goal.index}: {INCOMPLETE}")
     return builder.close()
