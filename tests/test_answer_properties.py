@@ -4,8 +4,10 @@ Random trees come from the differential test's generator, with the names of abou
 their control nodes and decorators removed (as real trees leave them unnamed). After
 every event of a run, every question is asked of the live state and history, and:
 
-(a) no answer speaks of an unnamed control node or decorator: its type never fills a
-    verb slot ("I could not sequence …"); the answers climb to a named node instead;
+(a) no answer speaks of an unnamed control node or decorator in a verb slot ("I could
+    not sequence …"), nor of an unnamed control anywhere ("because sequence
+    succeeded", "because inverter failed" for an Inverter whose check succeeded): the
+    answers climb to a named node, or down to the leaf that decided, instead;
 (b) the leaf "What went wrong?" blames (Algorithm 7 at the moment) has failed at or
     before the moment;
 (c) "Why didn't you X?" agrees with X's last activation: it says "I did X." only when
@@ -20,7 +22,7 @@ import random
 import re
 import xml.etree.ElementTree as ET
 
-from hypothesis import HealthCheck, given, settings
+from hypothesis import HealthCheck, example, given, settings
 from hypothesis import strategies as st
 
 from btlog.domains.outcomes import Outcomes, scripted_leaf_factory
@@ -78,16 +80,19 @@ SLOTS = (
 
 
 def _forbidden(tree: Tree) -> list[re.Pattern]:
-    """An unnamed control's or decorator's words in a verb slot (those no named node's
-    words contain)."""
+    """An unnamed control's words anywhere, an unnamed decorator's in a verb slot (those
+    no named node's words contain)."""
     spoken = {words(n) for n in tree if is_named(n) or n.is_execution}
-    phrases = {words(n) for n in tree if n.kind in (CONTROL, DECORATOR) and not is_named(n)}
+    unnamed = [n for n in tree if n.kind in (CONTROL, DECORATOR) and not is_named(n)]
     slots = "|".join(SLOTS)
-    return [
-        re.compile(rf"(?:{slots}){re.escape(p)}\b")
-        for p in phrases
-        if not any(p in other for other in spoken)
-    ]
+    found = []
+    for node in unnamed:
+        said = words(node)
+        if any(said in other for other in spoken):
+            continue
+        where = "" if node.kind == CONTROL else f"(?:{slots})"
+        found.append(re.compile(rf"{where}\b{re.escape(said)}\b"))
+    return found
 
 
 class Checker(Subscriber):
@@ -116,8 +121,8 @@ class Checker(Subscriber):
             ended = _last_activation_end(node.uid, state.seq, history)
             if said == f"I did {words(node)}.":
                 assert ended is SUCCESS, (node, said)
-            if ended in (FAILURE, IDLE):
-                assert not said.startswith("I did "), (node, said, ended)
+            if ended in (FAILURE, IDLE):  # "I did not X because …" is about X's parent
+                assert not re.match(r"I did (?!not )", said), (node, said, ended)
         self.checked += 1
 
     def on_status(self, *args) -> None:
@@ -142,9 +147,20 @@ def _last_activation_end(uid: int, now: int, history: LiveHistory):
 @settings(
     max_examples=25,
     deadline=None,
+    derandomize=True,
     suppress_health_check=[HealthCheck.too_slow],
 )
 @given(st.integers(0, 100_000), st.randoms(use_true_random=False))
+# Trees that once broke a promise: an unnamed Parallel or Switch said to have succeeded
+# or failed (0, 18), a control failing in the tick it started (45), an IfThenElse whose
+# condition failed again unchanged (170), a control failed by its own precondition (213),
+# an Inverter over a success (1767).
+@example(0, random.Random(0))
+@example(18, random.Random(18))
+@example(45, random.Random(45))
+@example(170, random.Random(170))
+@example(213, random.Random(213))
+@example(1767, random.Random(1))
 def test_answers_on_random_trees_keep_their_promises(seed: int, rng) -> None:
     case = generate(seed)
     tree = load_tree_text(_unnamed_controls(case.xml, seed), _registry())

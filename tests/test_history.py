@@ -71,15 +71,16 @@ def test_taxi_pick_up_fails_live_and_post_hoc(tmp_path: Path, tree_file: Path) -
 )
 def test_kitting_insertion_fails_through_every_retry(tmp_path: Path, tree_file: Path) -> None:
     """The robot falls back to asking for help and the run succeeds: at the end Q6 tells
-    the last failure Algorithm 7 explained, with its time."""
+    the last failure episode as the story does (when the leaf failed, what Q6 said
+    then), not when help was asked for; a leaf's failure is told by its time."""
     outcomes = {"nodes": {"trial and error insert": ["FAILURE"]}}
     path = _record(tmp_path, str(tree_file), "kitting", outcomes=outcomes)
     assert _ask(path, "end", "What went wrong?") == (
-        "At 43.700 s: I could not go insert large gear because I was unable to insert "
-        "large gear as trial and error insert failed."
+        "At 40.700 s: I am retrying for attempt 2 to go insert large gear. I could not "
+        "insert large gear because trial and error insert failed."
     )
     assert _ask(path, "end", "Why did trial and error insert fail?") == (
-        "I could not trial and error insert because trial and error insert failed."
+        "trial and error insert failed at 40.700 s."
     )
     # The SubTree did not fail, its Sequence of the same name did: the answer is about it.
     assert _ask(path, "end", "Why did go insert large gear fail?") == (
@@ -194,7 +195,7 @@ def test_story_of_a_run_with_retries_and_a_fallback(tmp_path: Path) -> None:
         "go pick screw",
         "go place screw",
     ]
-    assert "SUCCESS in" in lines[7] and "attempts" not in lines[7]
+    assert "SUCCESS in" in lines[7] and "runs" not in lines[7]
 
 
 def test_story_json_of_a_failed_run(tmp_path: Path) -> None:
@@ -206,7 +207,7 @@ def test_story_json_of_a_failed_run(tmp_path: Path) -> None:
     assert episode["leaf"] == "pick up passenger"
     assert episode["t_ns"] == 7_000_000_000
     assert episode["handling"] == ["propagated to go deliver passenger: the run failed"]
-    assert [(s["subgoal"], s["result"], s["attempts"]) for s in told["subgoals"]] == [
+    assert [(s["subgoal"], s["result"], s["runs"]) for s in told["subgoals"]] == [
         ("go pick up passenger", "FAILURE", 1),
         ("go drop off passenger", None, 0),
     ]

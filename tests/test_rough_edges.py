@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import os
+import re
 import subprocess
 import sys
 from pathlib import Path
@@ -266,3 +267,35 @@ def test_recover_prints_a_summary(tmp_path: Path) -> None:
     recovered = btlog("recover", "cut.mcap", "-o", "fixed.mcap", cwd=tmp_path)
     assert recovered.returncode == 0, recovered.stderr
     assert "RecoveryReport(" not in recovered.stdout and "events" in recovered.stdout
+
+
+def _ticks_said(text: str) -> str:
+    """The "N ticks" a command's summary says."""
+    (found,) = re.findall(r"(\d+) ticks", text)
+    return found
+
+
+def test_run_recover_and_the_story_count_the_same_ticks(tmp_path: Path) -> None:
+    """A run's ticks are the ticks it ran, its teardown not counted, and the story's
+    extent is the run's, also after its last event (a cut run ticked on)."""
+    ran = btlog(
+        "run", KITTING, "--domain", "kitting", "-o", "k.mcap", "--flush-interval", "0",
+        cwd=tmp_path,
+    )  # fmt: skip
+    assert ran.returncode == 0, ran.stderr
+    ticks = re.search(r"ticks: (\d+)", ran.stdout)
+    assert ticks is not None
+    data = (tmp_path / "k.mcap").read_bytes()
+    (tmp_path / "cut.mcap").write_bytes(data[: len(data) * 6 // 10])
+    for source, target in (("k.mcap", "whole.mcap"), ("cut.mcap", "fixed.mcap")):
+        recovered = btlog("recover", source, "-o", target, cwd=tmp_path)
+        assert recovered.returncode == 0, recovered.stderr
+        told = btlog("explain", target, cwd=tmp_path).stdout.splitlines()[0]
+        assert _ticks_said(told) == _ticks_said(recovered.stdout), (told, recovered.stdout)
+        if source == "k.mcap":
+            assert _ticks_said(told) == ticks.group(1)
+        else:  # the cut run ticked on after its last event: the story says how long
+            query = "SELECT duration_ns FROM runs"
+            rows = btlog("sql", target, query, "--format", "csv", cwd=tmp_path)
+            duration = int(rows.stdout.splitlines()[1]) / 1e9
+            assert f"after {duration:.3f} s" in told and "not finished (RUNNING)" in told

@@ -111,9 +111,22 @@ def test_the_fetch_story_names_what_is_retried(tmp_path: Path) -> None:
     assert lines[8:] == [
         "Subgoals:",
         "  get to kitchen: SUCCESS in 1.500 s (0.000 s to 1.500 s)",
-        "  grasp cup: SUCCESS in 1.500 s (1.500 s to 3.000 s), 3 attempts, the last in 0.500 s",
+        "  grasp cup: SUCCESS, 3 runs (1.500 s to 3.000 s), the last in 0.500 s",
         "  bring coffee: SUCCESS in 0.500 s (3.000 s to 3.500 s)",
     ]
+
+
+@pytest.mark.parametrize("case", sorted(EXPECTED))
+def test_what_went_wrong_after_the_fact_is_the_storys_last_episode(
+    tmp_path: Path, case: str
+) -> None:
+    """One notion of a failure episode: at the end, "What went wrong?" tells the story's
+    last episode, at the time its leaf failed and in the words the story uses."""
+    recording = _run(tmp_path, case)
+    told = json.loads(btlog("explain", str(recording), "--json").stdout)
+    last = told["episodes"][-1]
+    said = btlog("ask", str(recording), "--at", "end", "What went wrong?").stdout.strip()
+    assert said == f"At {last['last_t_ns'] / 1e9:.3f} s: {last['what_went_wrong']}"
 
 
 def test_a_run_stopped_while_running_is_not_finished(tmp_path: Path) -> None:
@@ -188,6 +201,8 @@ def test_a_recovery_node_halting_itself_runs_once(tmp_path: Path) -> None:
     recording = _run(tmp_path, "nav2")
     asked = btlog("ask", str(recording), "--at", "end", "How long did navigate recovery take?")
     assert asked.stdout.strip() == "navigate recovery took 5.500 s, from 0.000 s to 5.500 s."
+    told = json.loads(btlog("explain", str(recording), "--json").stdout)
+    assert told["goal_runs"] == [{"start_ns": 0, "end_ns": 5_500_000_000, "result": "SUCCESS"}]
 
 
 # -- grounded reasons --------------------------------------------------------------------

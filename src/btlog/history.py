@@ -81,6 +81,20 @@ def resumes(before: Transition | None, change: Transition) -> bool:
     )
 
 
+def activation_end(history: Queries, start: Transition, hi: int) -> Transition | None:
+    """The change that ended the activation ``start`` began, before event ``hi``: its
+    completion, or the reset to IDLE that halted it — unless the node returned its result
+    right after that reset (``resumes``), which then ends it; None while it still runs.
+    Durations, results and runs of the goal all end activations here."""
+    if start.status in COMPLETIONS:
+        return start
+    end = history.first([start.uid], (*COMPLETIONS, IDLE), start.seq + 1, hi)
+    if end is None or end.status is not IDLE:
+        return end
+    after = history.first([start.uid], ANY_STATUS, end.seq + 1, min(end.seq + 2, hi))
+    return after if after is not None and resumes(end, after) else end
+
+
 class Queries:
     """``History``'s transition queries, each one call of ``select`` (which a backend
     implements once: in memory, or as SQL)."""

@@ -229,7 +229,10 @@ def _story(args: Namespace) -> int:
     from btlog.explain.story import story
 
     with _moment(args.run, "end", args.descriptions) as (run, tree, state, _moment_at):
-        told = story(tree, state, run.history())
+        extent = run.extent
+        told = story(
+            tree, state, run.history(), duration_ns=extent.duration_ns, ticks=run.ticks_run()
+        )
         notes = recording_notes(run.info.metadata)
     if args.json:
         _print_json({**told.to_json(), "notes": notes})

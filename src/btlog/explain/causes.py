@@ -21,8 +21,10 @@ its episodes and the fleet's causes mark them, so neither blames them for what w
 **What went wrong? (Q6) over the history.** When Algorithm 7 has something to say at
 the moment, that is the answer (word for word the paper's). Otherwise, after the root
 completed with FAILURE: ``I could not {d(root)} because {d(leaf)} failed.`` Otherwise,
-when Algorithm 7 had something to say earlier: ``At {t} s: {that answer}``, for the last
-moment it had one. Only when there is none: ``Nothing went wrong.``
+when Algorithm 7 had something to say earlier: ``At {t} s: {what it said then}`` for the
+last failure episode it spoke of — ``t`` the time its leaf failed, the sentence Q6's
+right after the failure, exactly as the run's story tells that episode. Only when there
+is none: ``Nothing went wrong.``
 
 The last such moment is found without a replay. Algorithm 7 speaks only while a
 failure handler (``btlog.explain.handlers``) above the current node, within its
@@ -41,7 +43,7 @@ from btlog.explain.failure import NOTHING_WRONG, decided_by_guard, diagnose
 from btlog.explain.grounds import grounded, grounds
 from btlog.explain.handlers import FallbackHandler, handler_of
 from btlog.explain.hierarchy import current_nodes, per_node
-from btlog.explain.words import goal_words, seconds, words
+from btlog.explain.words import goal_words, is_named, seconds, words
 from btlog.history import ANY_STATUS, COMPLETIONS, History, Transition
 from btlog.state import State
 from btlog.status import FAILURE, IDLE, RUNNING, SUCCESS
@@ -58,21 +60,53 @@ ACTIVE = (RUNNING, SUCCESS, FAILURE)
 def algorithm7(tree: Tree, state: State, history: History | None = None) -> str:
     """Algorithm 7 at the moment ``state``, for every current node; with the run's
     ``history``, each blamed leaf's failure is grounded (``btlog.explain.grounds``)."""
+    return _algorithm7(tree, state, history)[0]
+
+
+def _algorithm7(tree: Tree, state: State, history: History | None) -> tuple[str, list[Node]]:
+    """``algorithm7``'s answer and the leaves it blames."""
+    blamed: list[Node] = []
 
     def render(node: Node) -> str:
-        text, leaf = diagnose(node, state, tree)
-        if history is None or leaf is None:
-            return text
-        return grounded(text, tree, leaf, state.seq, history)
+        text, leaf = diagnose_over_history(node, tree, state, history)
+        if leaf is not None:
+            blamed.append(leaf)
+        return text
 
-    return per_node(current_nodes(tree, state), render, NOTHING_WRONG)
+    return per_node(current_nodes(tree, state), render, NOTHING_WRONG), blamed
+
+
+def diagnose_over_history(
+    node: Node | None, tree: Tree, state: State, history: History | None
+) -> tuple[str, Node | None]:
+    """Algorithm 7 for one current node (``diagnose``), its blamed leaf's failure told
+    with the run's history: grounded (``btlog.explain.grounds``), and, when the chain
+    stopped at a decorator or control that failed with no execution node failing below
+    it (an Inverter over a success), told by what decided it (``… because {check}
+    succeeded.``)."""
+    text, leaf = diagnose(node, state, tree)
+    if history is None or leaf is None:
+        return text, leaf
+    if not leaf.is_execution:
+        failed = history.last([leaf.uid], (FAILURE,), 0, state.seq)
+        tail = f"{words(leaf)} failed."
+        if failed is not None and text.endswith(tail):
+            return f"{text[: -len(tail)]}{because(tree, leaf, failed, history)}.", leaf
+    return grounded(text, tree, leaf, state.seq, history), leaf
 
 
 def activation_start(node: Node, before: int, history: History, lo: int = 0) -> int:
-    """The seq of the node's last start (out of IDLE) before event ``before`` (``lo``
-    when there is none since ``lo``)."""
+    """Where the node's last activation before event ``before`` begins in the events
+    (``lo`` when it has none since ``lo``): its start out of IDLE, or, when that start
+    is its result (a node that completes in the tick it started logs only its result,
+    after its children's changes), right after its previous change."""
     start = history.last([node.uid], ANY_STATUS, lo, before, starts=True)
-    return lo if start is None else start.seq
+    if start is None:
+        return lo
+    if start.status in COMPLETIONS:
+        previous = history.last([node.uid], ANY_STATUS, lo, start.seq)
+        return lo if previous is None else previous.seq + 1
+    return start.seq
 
 
 def cause(tree: Tree, node: Node, completion: Transition, history: History) -> Transition:
@@ -84,12 +118,24 @@ def cause(tree: Tree, node: Node, completion: Transition, history: History) -> T
         lo = activation_start(node, completion.seq + 1, history, lo)
         uids = [c.uid for c in node.children]
         child = history.last(uids, COMPLETIONS, lo, completion.seq)
+        if child is None:
+            child, lo = _still_completed(uids, lo, completion.seq, history), 0
         if child is None or child.uid not in tree.nodes:
             break
         if completion.status is FAILURE and isinstance(handler_of(node), FallbackHandler):
             child = _original_failure(tree, node, child, lo, history)
         node, completion = tree.node(child.uid), child
     return completion
+
+
+def _still_completed(uids: list[int], lo: int, hi: int, history: History) -> Transition | None:
+    """The child that completed before event ``lo`` and has not changed since, up to
+    ``hi``: ticked again, it returned the same result, which changes nothing and is not
+    logged (an IfThenElse's condition failing on every tick); None when there is none."""
+    earlier = history.last(uids, COMPLETIONS, 0, lo)
+    if earlier is None or history.last([earlier.uid], ANY_STATUS, earlier.seq + 1, hi):
+        return None
+    return earlier
 
 
 def _original_failure(
@@ -131,10 +177,21 @@ def by_design(tree: Tree, node: Node, failed: Transition, history: History) -> b
     )
 
 
+#: The precondition that makes a node return each result without running its children.
+_DECIDING_PRECONDITION = {FAILURE: "_failureIf", SUCCESS: "_successIf"}
+
+
 def because(tree: Tree, node: Node, completion: Transition, history: History) -> str:
-    """``{d(leaf)} failed`` (or ``succeeded``) for the cause of ``completion``."""
+    """``{d(leaf)} failed`` (or ``succeeded``) for the cause of ``completion``; when the
+    cause is an unnamed control or decorator that decided by its own precondition (no
+    child completed), the precondition: ``the precondition _failureIf="x < 2" held``."""
     leaf = cause(tree, node, completion, history)
     culprit = tree.node(leaf.uid)
+    if not culprit.is_execution and not is_named(culprit):
+        attribute = _DECIDING_PRECONDITION.get(leaf.status, "")
+        script = culprit.attributes.get(attribute)
+        if script:
+            return f'the precondition {attribute}="{script}" held'
     if leaf.status is SUCCESS:
         return f"{words(culprit)} succeeded"
     return f"{words(culprit)} failed{grounds(tree, culprit, leaf, history)}"
@@ -201,7 +258,9 @@ def _candidate(
 
 
 def earlier_wrong(tree: Tree, state: State, history: History) -> tuple[int, str] | None:
-    """(time, Algorithm 7's answer) at the last moment before ``state`` it had one."""
+    """(time, sentence) of the failure episode Algorithm 7 last spoke of before
+    ``state``: the time its leaf failed and what Q6 said then (``episode_sentence``),
+    as the run's story tells that episode."""
     now = state.seq
     handlers = [n for n in tree if handler_of(n) is not None]
     windows = []
@@ -210,7 +269,7 @@ def earlier_wrong(tree: Tree, state: State, history: History) -> tuple[int, str]
         if failed is not None:
             windows.append((failed.seq, handler, failed))
     leaves = [n.uid for n in tree if n.is_execution]
-    best: tuple[int, int, str] | None = None
+    best: tuple[int, Transition] | None = None
     for _, handler, failed in sorted(windows, key=lambda w: w[0], reverse=True):
         end = _window_end(handler, failed, now, history)
         if best is not None and end <= best[0]:
@@ -219,10 +278,45 @@ def earlier_wrong(tree: Tree, state: State, history: History) -> tuple[int, str]
         if moment is None or (best is not None and moment <= best[0]):
             continue
         then_tree, then = history.state_after(moment)
-        text = algorithm7(then_tree, then, history)
-        if text != NOTHING_WRONG:
-            best = (moment, then.t_ns, text)
-    return None if best is None else (best[1], best[2])
+        if algorithm7(then_tree, then, history) != NOTHING_WRONG:
+            best = (moment, failed)
+    if best is None:
+        return None
+    failed = best[1]
+    leaf_done = cause(tree, tree.node(failed.uid), failed, history)
+    leaf = tree.node(leaf_done.uid)
+    seen = _first_handled(leaf, leaf_done, now, history) or failed
+    return leaf_done.t_ns, episode_sentence(tree, seen, leaf, history)
+
+
+def _first_handled(
+    leaf: Node, leaf_done: Transition, now: int, history: History
+) -> Transition | None:
+    """The failure, caused by ``leaf_done``, that the innermost failure handler above the
+    leaf saw: where the run's story tells the episode from."""
+    child = leaf
+    for ancestor in leaf.ancestors():
+        if handler_of(ancestor) is not None:
+            seen = history.first([child.uid], (FAILURE,), leaf_done.seq, now)
+            if seen is not None:
+                return seen
+        child = ancestor
+    return None
+
+
+def episode_sentence(tree: Tree, failed: Transition, leaf: Node, history: History) -> str:
+    """What went wrong in a failure episode: Q6 about the failed ``leaf`` right after
+    its handler saw the failure ``failed`` of its child (Algorithm 7, grounded), or the
+    cause when Algorithm 7 is silent. The run's story tells each episode so, and "What
+    went wrong?" after the fact tells the last one so."""
+    then_tree, then = history.state_after(failed.seq + 1)
+    text, _blamed = diagnose_over_history(then_tree.nodes.get(leaf.uid), then_tree, then, history)
+    if text != NOTHING_WRONG:
+        return text
+    node = tree.node(failed.uid)
+    done = history.last([leaf.uid], (FAILURE,), 0, failed.seq + 1)
+    reason = "" if done is None else grounds(tree, leaf, done, history)
+    return f"I could not {words(node)} because {words(leaf)} failed{reason}."
 
 
 def _last_real_failure(tree: Tree, handler: Node, now: int, history: History) -> Transition | None:

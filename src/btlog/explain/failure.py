@@ -227,13 +227,25 @@ def diagnose(node: Node | None, state: State, tree: Tree | None = None) -> tuple
             found = None if first is None else _fallback_sentence(ancestor, first, state, goal)
             if found is not None:
                 retries = [_retry_attempt(a, state, goal) for a in _retrying(ancestor, child)]
-                return " ".join([*(r for r in retries if r), found[0]]), found[1]
+                retries = [r for r in retries if r]
+                if retries or not _retried_since(ancestor, first, state):
+                    return " ".join([*retries, found[0]]), found[1]
             if handler.retried(ancestor) is not None and first is None:
                 retried = _retry_sentence(ancestor, state, goal)
                 if retried is not None:
                     return retried
         child, ancestor = ancestor, ancestor.parent
     return NOTHING_WRONG, None
+
+
+def _retried_since(handler: Node, first: Node, state: State) -> bool:
+    """True when ``handler`` retries the child it fell back from (a RecoveryNode) and that
+    child ran again after its failure: the failure was handled, and once the handler's
+    retry is over (it completed) nothing is wrong any more."""
+    rule = handler_of(handler)
+    if rule is None or rule.retried(handler) is not first:
+        return False
+    return state.activation.get(first.uid, -1) > state.last_failure.get(first.uid, -1)
 
 
 def what_went_wrong(node: Node | None, state: State, tree: Tree | None = None) -> str:

@@ -120,9 +120,11 @@ class RetryHandler:
 
 class RecoveryHandler(FallbackHandler):
     """Nav2's RecoveryNode: a failure of the first child runs the recovery (the second
-    child), whose success retries the first, ``number_of_retries`` times at most."""
+    child), whose success retries the first, ``number_of_retries`` times at most. Once
+    the retried child ran again, what went wrong is over when the node completes, as for
+    a retry."""
 
-    lasts_until_restart = True
+    lasts_until_restart = False
 
     def retried(self, node: Node) -> Node | None:
         """The first child, retried after a successful recovery."""

@@ -13,10 +13,10 @@ from btlog.explain.causes import because
 from btlog.explain.grounds import grounds
 from btlog.explain.handlers import FallbackHandler, handler_of
 from btlog.explain.words import humanize, is_named, seconds, words
-from btlog.history import ANY_STATUS, COMPLETIONS, History, Transition
+from btlog.history import ANY_STATUS, COMPLETIONS, History, Transition, activation_end
 from btlog.state import State
-from btlog.status import FAILURE, IDLE, RUNNING, SUCCESS, Status
-from btlog.tree.model import CONDITION, Node, Tree
+from btlog.status import FAILURE, RUNNING, SUCCESS, Status
+from btlog.tree.model import Node, Tree
 
 #: "When did X last …?": the statuses asked about and the words of the answer.
 EVENTS: dict[str, tuple[tuple[Status, ...], bool, str, str]] = {
@@ -75,13 +75,14 @@ def about(nodes: list[Node], event: str | None, state: State, history: History) 
 
 
 def why_failed(tree: Tree, node: Node, state: State, history: History) -> str:
-    """``I could not {d(X)} because {d(leaf)} failed.`` for X's last FAILURE; for a
-    condition (a check, not something done), ``{d(X)} failed at {t} s`` with its
-    grounds."""
+    """``I could not {d(X)} because {d(leaf)} failed.`` for X's last FAILURE; for an
+    execution node, whose failure has no cause below it in the tree, when it failed and
+    its grounds (what it reported or, a condition, read): ``{d(X)} failed at {t} s
+    ({grounds}).``"""
     failed = history.last([node.uid], (FAILURE,), 0, state.seq)
     if failed is None:
         return f"{words(node)} has not failed."
-    if node.kind == CONDITION:  # a check, not something the robot does: its grounds
+    if node.is_execution:  # "because it failed" says nothing: when, and its grounds
         found = grounds(tree, node, failed, history)
         return f"{words(node)} failed at {seconds(failed.t_ns)} s{found}."
     return f"I could not {words(node)} because {because(tree, node, failed, history)}."
@@ -117,9 +118,7 @@ def _last_activation(tree: Tree, node: Node, state: State, history: History) -> 
     now = state.seq
     start = history.last([node.uid], ANY_STATUS, 0, now, starts=True)
     assert start is not None
-    end: Transition | None = start
-    if start.status not in (SUCCESS, FAILURE):
-        end = history.first([node.uid], (SUCCESS, FAILURE, IDLE), start.seq + 1, now)
+    end = activation_end(history, start, now)
     if end is None:
         return f"I am still trying to {words(node)}: I started at {seconds(start.t_ns)} s."
     if end.status is SUCCESS:
@@ -164,9 +163,10 @@ def _reason(tree: Tree, asked: Node, node: Node, since: int, state: State, histo
     done = history.last(earlier, (SUCCESS,) if fallback else (FAILURE,), since, state.seq)
     if done is None:
         return _not_yet(asked)
-    if fallback:
-        return f"I did not {words(asked)} because {words(tree.node(done.uid))} succeeded."
     sibling = tree.node(done.uid)
+    if fallback and (is_named(sibling) or sibling.is_execution):
+        return f"I did not {words(asked)} because {words(sibling)} succeeded."
+    # an unnamed branch is never spoken of: what decided its result is
     return f"I did not {words(asked)} because {because(tree, sibling, done, history)}."
 
 

@@ -7,11 +7,11 @@ ticked in a loop, re-run after each completion) each **run of the goal** is told
 own line, or counted by result when there are many; then each failure **episode** in time
 order — when, what Q6 said about it, and how it was handled (retried, attempt k of n;
 fell back to another child; or propagated up to the goal); then each **subgoal**
-(``btlog.explain.hierarchy.subgoals``) with its result, duration and attempts in the
-last run of the goal. The **gaps** in the data come first when there are any (times a
-source gave no data: ``btlog attach``'s publisher fell silent or restarted; the writes
-of ``btlog.events.GAP_SCOPE`` in the state). A pure function of (tree, state, history)
-like the answers, built from history queries only.
+(``btlog.explain.hierarchy.subgoals``) with its result, duration and runs (activations)
+in the last run of the goal. The **gaps** in the data come first when there are any
+(times a source gave no data: ``btlog attach``'s publisher fell silent or restarted; the
+writes of ``btlog.events.GAP_SCOPE`` in the state). A pure function of (tree, state,
+history) like the answers, built from history queries only.
 
 An *episode* is one execution node's real failure as the failure handlers above it
 (``btlog.explain.handlers``) saw it: each handler whose child failed because of it
@@ -37,14 +37,13 @@ from btlog.explain.causes import (
     because,
     by_guard,
     cause,
+    episode_sentence,
     root_failure,
 )
-from btlog.explain.failure import NOTHING_WRONG, diagnose
-from btlog.explain.grounds import grounded, grounds
 from btlog.explain.handlers import FELL_BACK, PROPAGATED, Reaction, handler_of
 from btlog.explain.hierarchy import subgoals
 from btlog.explain.words import goal_words, seconds, words
-from btlog.history import ANY_STATUS, COMPLETIONS, History, Transition
+from btlog.history import ANY_STATUS, COMPLETIONS, History, Transition, activation_end
 from btlog.state import State
 from btlog.status import FAILURE, IDLE, RUNNING
 from btlog.tree.model import SUBTREE, Node, Tree
@@ -85,11 +84,13 @@ class Episode:
 
 @dataclass
 class Subgoal:
-    """One subgoal: how often it started, its last result and the time it took."""
+    """One subgoal in the last run of the goal: how often it ran (its activations: a
+    retry, a replanning or a loop runs it again; *attempts* are the paper's retries,
+    told by the episodes), its last result and the time it took."""
 
     name: str
     depth: int
-    attempts: int
+    runs: int
     result: str | None
     first_ns: int | None
     last_ns: int | None
@@ -100,27 +101,26 @@ class Subgoal:
         return {
             "subgoal": self.name,
             "depth": self.depth,
-            "attempts": self.attempts,
+            "runs": self.runs,
             "result": self.result,
             "start_ns": self.first_ns,
             "end_ns": self.last_ns,
-            "last_attempt_start_ns": self.last_start_ns,
+            "last_run_start_ns": self.last_start_ns,
         }
 
     def text(self) -> str:
-        """E.g. ``go pick screw: SUCCESS in 19.600 s (43.700 s to 63.300 s)``."""
-        result = self.result or ("not started" if not self.attempts else "not finished")
+        """E.g. ``go pick screw: SUCCESS in 19.600 s (43.700 s to 63.300 s)``; one that
+        ran more than once: ``grasp cup: SUCCESS, 3 runs (1.500 s to 3.000 s), the last
+        in 0.500 s``."""
+        result = self.result or ("not started" if not self.runs else "not finished")
         text = f"{'  ' * self.depth}{self.name}: {result}"
-        if self.first_ns is not None and self.last_ns is not None:
-            text += (
-                f" in {seconds(self.last_ns - self.first_ns)} s"
-                f" ({seconds(self.first_ns)} s to {seconds(self.last_ns)} s)"
-            )
-        if self.attempts > 1:
-            text += f", {self.attempts} attempts"
-            if self.last_start_ns is not None and self.last_ns is not None:
-                text += f", the last in {seconds(self.last_ns - self.last_start_ns)} s"
-        return text
+        if self.first_ns is None or self.last_ns is None:
+            return text
+        span = f"({seconds(self.first_ns)} s to {seconds(self.last_ns)} s)"
+        if self.runs <= 1 or self.last_start_ns is None:
+            return f"{text} in {seconds(self.last_ns - self.first_ns)} s {span}"
+        last = seconds(self.last_ns - self.last_start_ns)
+        return f"{text}, {self.runs} runs {span}, the last in {last} s"
 
 
 @dataclass
@@ -234,6 +234,14 @@ def _runs_told(runs: list[GoalRun]) -> list[str]:
     return [f"1–{len(runs) - 1}. {summary}", f"{len(runs)}. {runs[-1].text()}"]
 
 
+def _outcome(status: str) -> str:
+    """The outcome as the story says it: the final status, or that the run never
+    completed (``not finished (RUNNING)``), or never started."""
+    if status in ("SUCCESS", "FAILURE"):
+        return status
+    return "not started" if status == IDLE.name else f"not finished ({status})"
+
+
 def final_status(tree: Tree, state: State, history: History) -> str:
     """The run's final status: the root's status after its last tick (its last change
     other than a reset to IDLE), IDLE when it never ran."""
@@ -249,9 +257,7 @@ def goal_runs(tree: Tree, state: State, history: History, limit: int = 10_000) -
     runs = []
     for index, start in enumerate(starts):
         hi = starts[index + 1].seq if index + 1 < len(starts) else now
-        end = start if start.status in COMPLETIONS else None
-        if end is None:
-            end = history.first([root], (*COMPLETIONS, IDLE), start.seq + 1, hi)
+        end = activation_end(history, start, hi)
         if end is None:
             runs.append(GoalRun(start.t_ns, None, None))
         else:
@@ -288,21 +294,6 @@ def _reaction(tree: Tree, failed: Transition, history: History) -> Reaction | No
     since = activation_start(parent, failed.seq + 1, history)
     failures = history.count([child.uid], (FAILURE,), since, failed.seq + 1)
     return rule.react(parent, child, failures)
-
-
-def _sentence(tree: Tree, failed: Transition, leaf: Node, history: History) -> str:
-    """Q6 about the failed leaf right after the handler saw its failure, grounded; the
-    cause when Algorithm 7 is silent."""
-    then_tree, then = history.state_after(failed.seq + 1)
-    text, blamed = diagnose(then_tree.nodes.get(leaf.uid), then, then_tree)
-    if text != NOTHING_WRONG and blamed is not None:
-        return grounded(text, tree, blamed, failed.seq + 1, history)
-    if text != NOTHING_WRONG:
-        return text
-    node = tree.node(failed.uid)
-    done = history.last([leaf.uid], (FAILURE,), 0, failed.seq + 1)
-    reason = "" if done is None else grounds(tree, leaf, done, history)
-    return f"I could not {words(node)} because {words(leaf)} failed{reason}."
 
 
 class _Failures:
@@ -360,7 +351,7 @@ def _episodes(tree: Tree, state: State, history: History) -> tuple[list[Episode]
             if len(episodes) >= MAX_EPISODES:
                 continue
             leaf = tree.node(leaf_done.uid)
-            sentence = _sentence(tree, failed, leaf, history)
+            sentence = episode_sentence(tree, failed, leaf, history)
             episode = Episode(leaf_done.seq, leaf_done.t_ns, words(leaf), sentence, [])
             episodes.append(episode)
         by_leaf[leaf_done.seq] = episode
@@ -423,11 +414,22 @@ def _merge(into: Episode, episode: Episode) -> None:
     into.last_t_ns = max(into.last_t_ns, episode.last_t_ns)
 
 
-def story(tree: Tree, state: State, history: History) -> Story:
-    """The story of the run up to ``state`` (its end, for ``btlog explain REC``)."""
+def story(
+    tree: Tree,
+    state: State,
+    history: History,
+    *,
+    duration_ns: int | None = None,
+    ticks: int | None = None,
+) -> Story:
+    """The story of the run up to ``state`` (its end, for ``btlog explain REC``);
+    ``duration_ns`` and ``ticks`` are the run's own extent when it went on past its last
+    event (ticks in which nothing changed: a run cut short, or stopped while waiting),
+    and the ticks it ran, its teardown not counted, as ``btlog run`` and ``btlog
+    recover`` count them."""
     now = state.seq
     status = final_status(tree, state, history)
-    outcome = status if status in ("SUCCESS", "FAILURE") else f"not finished ({status})"
+    outcome = _outcome(status)
     why = root_failure(tree, state, history) if status == FAILURE.name else None
     runs = goal_runs(tree, state, history)
     since = 0
@@ -439,8 +441,8 @@ def story(tree: Tree, state: State, history: History) -> Story:
         goal=goal_words(tree),
         outcome=outcome,
         why=why,
-        duration_ns=state.t_ns,
-        ticks=state.tick,
+        duration_ns=max(state.t_ns, duration_ns or 0),
+        ticks=state.tick if ticks is None else ticks,
         events=state.seq,
         failures=failures,
         episodes=episodes,

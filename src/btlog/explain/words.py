@@ -9,19 +9,34 @@ phrase. Real trees name nodes as identifiers — ``ComputePathToPose``,
 answer. So, in answers (never in tables, SQL or the timeline, which keep names as
 recorded):
 
-- a node's **own description** comes first: its ``_description`` attribute, which
-  BehaviorTree.CPP 4 reserves on every node (and on a ``<BehaviorTree>``, for the SubTree
-  that runs it), or what a descriptions file (``--descriptions FILE``) gives for its path,
-  name or type — the loader stores both as the node's ``_description``, so a recording
-  carries them and post-hoc answers equal live ones;
+- a node's **own description** comes first: its ``_description`` attribute — not a
+  port in BehaviorTree.CPP 4 (a leading ``_`` is never one; BT.CPP keeps it as a
+  non-port attribute, its docs list it as reserved, Groot2 and MoveIt Pro write it on
+  ``<BehaviorTree>``s), taken for the SubTree that runs such a tree too — or what a
+  descriptions file (``--descriptions FILE``) gives for its path, name or type; the
+  loader stores both as the node's ``_description``, so a recording carries them and
+  post-hoc answers equal live ones. A description is documentation as often as a verb
+  phrase ("Close the right gripper by default.", "Returns the pose of the frame.", "An
+  example showing how to …"), so it is spoken as its first sentence without its full
+  stop, its first word in the base form a sentence "I …" needs ("Returns" → "return")
+  and in lower case unless it is an acronym; one that starts as a noun phrase (an
+  article, a demonstrative or a pronoun: "An example …", "This subtree …") or is longer
+  than ``MAX_PHRASE_WORDS`` words is documentation, not words for the node, and the name
+  is used instead;
 - else its name or type as **words**: an identifier is cut at its case changes,
   underscores and hyphens and lower-cased ("compute path to pose", "clear local costmap
-  context"), acronyms kept ("read IMU"); a node's own type standing first or last in its
-  name is dropped ("FallbackComputePathToPose" on a Fallback is "compute path to pose");
-  a name that already has spaces is kept as it is, so the paper's answers do not change;
-- a node is **named** when its name is neither empty nor its type. Only named nodes
-  (and SubTrees) are purposes, subgoals, steps or goals; an unnamed control node is
-  never spoken of — the answer climbs to the nearest named ancestor instead.
+  context"), acronyms kept ("read IMU"); a control node's or decorator's own type
+  standing first or last in its name is dropped ("FallbackComputePathToPose" on a
+  Fallback is "compute path to pose"), and so is its type's first word in front of more
+  ("RecoveryFollowPath" on a RecoveryNode is "follow path") — never a leaf's, whose type
+  is what it does ("SpinRecovery" on a Spin is "spin recovery"); a name that already
+  has spaces is kept as written but for a capitalised first word ("Drive in a square"
+  → "drive in a square") or the capitals of a Title Case name ("Close Gripper" → "close
+  gripper"), so the paper's answers do not change;
+- a node is **named** when it has such words of its own: a usable description, or a
+  name that is neither empty nor its type. Only named nodes (and SubTrees) are
+  purposes, subgoals, steps or goals; an unnamed control node is never spoken of — the
+  answer climbs to the nearest named ancestor instead.
 """
 
 from __future__ import annotations
@@ -29,10 +44,18 @@ from __future__ import annotations
 import re
 
 from btlog.tree.descriptions import DESCRIPTION
-from btlog.tree.model import SUBTREE, Node, Tree
+from btlog.tree.model import CONTROL, DECORATOR, SUBTREE, Node, Tree
 
 _IDENTIFIER = re.compile(r"^[A-Za-z_][A-Za-z0-9_\-]*$")
 _WORD = re.compile(r"[A-Z]+(?=[A-Z][a-z])|[A-Z]?[a-z]+[0-9]*|[A-Z]+[0-9]*|[0-9]+")
+_SENTENCE_END = re.compile(r"(?<=[.!?])\s")
+#: A description longer than this (its first sentence) is documentation, not words.
+MAX_PHRASE_WORDS = 14
+#: First words of a noun phrase: a description starting so is not a verb phrase.
+_NOUN_PHRASE_STARTS = frozenset(
+    {"a", "an", "the", "this", "that", "these", "those", "it", "its", "here", "there"}
+    | {"i", "my", "we", "our", "you", "your"}
+)
 
 
 def split_identifier(text: str) -> list[str]:
@@ -45,11 +68,62 @@ def split_identifier(text: str) -> list[str]:
     return words
 
 
+def _lower_initial(word: str) -> str:
+    """``Drive`` → ``drive``; an acronym or a mixed-case word (``ICP``, ``AprilTag``) as
+    it is."""
+    if len(word) > 1 and word[0].isupper() and word[1:].islower():
+        return word[0].lower() + word[1:]
+    return word
+
+
+def _as_written(text: str) -> str:
+    """A name with spaces as an answer speaks it: its capitalised first word in lower
+    case ("Drive in a square" → "drive in a square"), every capitalised word of a Title
+    Case name ("Move Left Home" → "move left home"); acronyms as they are."""
+    parts = text.split(" ")
+    if len(parts) < 2:
+        return text
+    long_words = [p for p in parts if len(p) > 3 and p.isalpha()]
+    if long_words and all(p[0].isupper() for p in long_words):
+        return " ".join(_lower_initial(p) for p in parts)
+    return " ".join([_lower_initial(parts[0]), *parts[1:]])
+
+
+def _base_form(verb: str) -> str:
+    """A third-person verb in the base form a sentence "I …" needs: ``returns`` →
+    ``return``, ``verifies`` → ``verify``, ``fetches`` → ``fetch``; another word (``move``,
+    ``process``, ``focus``) as it is."""
+    lower = verb.lower()
+    if not lower.isalpha() or len(lower) < 4 or not lower.endswith("s"):
+        return verb
+    if lower.endswith("ies"):
+        return verb[:-3] + "y"
+    if lower.endswith(("sses", "xes", "ches", "shes", "zzes", "oes")):
+        return verb[:-2]
+    if lower.endswith(("ss", "us", "is")):
+        return verb
+    return verb[:-1]
+
+
+def phrase(text: str) -> str | None:
+    """A description as an answer speaks it (see the module docstring), or None when it
+    is documentation rather than a phrase for the node."""
+    sentence = _SENTENCE_END.split(" ".join(text.split()), maxsplit=1)[0].rstrip(" .!;:")
+    parts = sentence.split(" ")
+    if not sentence or len(parts) > MAX_PHRASE_WORDS:
+        return None
+    if parts[0].lower() in _NOUN_PHRASE_STARTS:
+        return None
+    parts[0] = _base_form(_lower_initial(parts[0]))
+    return " ".join(parts)
+
+
 def humanize(text: str, own_type: str = "") -> str:
     """``text`` as words when it is an identifier (see the module docstring), else as it
-    is; ``own_type``, the node's type, is dropped from either end of the words."""
+    is but for a capitalised first word; ``own_type``, a control's or decorator's type,
+    is dropped from either end of the words, or its first word from the front."""
     if not _IDENTIFIER.match(text):
-        return text
+        return _as_written(text)
     words = split_identifier(text)
     if own_type and own_type != text and _IDENTIFIER.match(own_type):
         drop = split_identifier(own_type)
@@ -57,24 +131,34 @@ def humanize(text: str, own_type: str = "") -> str:
             words = words[len(drop) :]
         elif len(words) > len(drop) and words[-len(drop) :] == drop:
             words = words[: -len(drop)]
+        elif len(drop) > 1 and len(words) > 1 and words[0] == drop[0]:
+            words = words[1:]
     return " ".join(words) if words else text
 
 
+def own_phrase(node: Node) -> str | None:
+    """The node's description as an answer speaks it (``phrase``), if it has one."""
+    described = node.attributes.get(DESCRIPTION, "")
+    return phrase(described) if described.strip() else None
+
+
 def is_named(node: Node) -> bool:
-    """True when the node has a name of its own (not empty, not its type), a description,
-    or is a SubTree (whose name is the subtree's)."""
-    if node.attributes.get(DESCRIPTION, "").strip():
+    """True when the node has words of its own (see the module docstring): a usable
+    description, a name that is neither empty nor its type, or it is a SubTree (whose
+    name is the subtree's)."""
+    if own_phrase(node):
         return True
     return node.kind == SUBTREE or (bool(node.name) and node.name != node.type)
 
 
 def words(node: Node) -> str:
     """The node as an answer speaks of it (see the module docstring)."""
-    own = node.attributes.get(DESCRIPTION, "").strip()
+    own = own_phrase(node)
     if own:
-        return " ".join(own.split())
+        return own
     if node.name and node.name != node.type:
-        return humanize(node.name, node.type)
+        structural = node.kind in (CONTROL, DECORATOR)
+        return humanize(node.name, node.type if structural else "")
     return humanize(node.description)
 
 

@@ -142,7 +142,7 @@ class _Copier:
             if isinstance(seq, int):
                 self.report.note_seqs(seq, seq)
         elif topic == fmt.TICKS_TOPIC:
-            self.report.ticks += len(fmt.decode_ticks(data))
+            self.report.ticks += sum(not r.teardown for r in fmt.decode_ticks(data))
 
 
 def recover(broken: str | os.PathLike, fixed: str | os.PathLike) -> RecoveryReport:

@@ -269,6 +269,15 @@ class Run:
         ).fetchone()
         return 0 if found is None or found[0] is None else int(found[0])
 
+    def ticks_run(self) -> int:
+        """How many ticks the tree ran: its last tick, the teardown not counted (the
+        number ``btlog run`` prints; ticks with no event count too)."""
+        found = self.con.execute(
+            f"SELECT max(tick) FROM {self._prefix}ticks WHERE run_id = $run_id AND NOT teardown",
+            {"run_id": self._stored_id},
+        ).fetchone()
+        return 0 if found is None or found[0] is None else int(found[0])
+
     # -- states --------------------------------------------------------------------------
     def state_at(self, moment: str | Moment) -> tuple[Tree, State]:
         """(tree, state) at ``moment``: the tree's shape and every node's status, retry

@@ -109,7 +109,15 @@ class RunView:
     def story(self) -> dict[str, Any]:
         """The run's story (``btlog explain REC``'s content, its JSON as it is)."""
         tree, state = self.run.state_after(self.events)
-        return story(tree, state, self.run.history()).to_json()
+        extent = self.run.extent
+        told = story(
+            tree,
+            state,
+            self.run.history(),
+            duration_ns=extent.duration_ns,
+            ticks=self.run.ticks_run(),
+        )
+        return told.to_json()
 
     def clamp(self, count: int) -> int:
         """``count`` within 0..events."""
