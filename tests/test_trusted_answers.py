@@ -417,3 +417,45 @@ def test_a_name_an_answer_prints_is_understood_in_a_question(tmp_path: Path) -> 
     for name in ("ClearLocalCostmap-Context", "clear local costmap context"):
         done = btlog("ask", str(recording), "--at", "end", f"When did {name} last start?")
         assert done.stdout.strip() == "clear local costmap context last started at 2.000 s."
+
+
+DOCUMENTED = """
+<root BTCPP_format="4" main_tree_to_execute="Tidy Up">
+  <BehaviorTree ID="Tidy Up" _description="Returns the arm to its home pose. Then it waits.">
+    <Sequence name="TopLevelSequence">
+      <SubTree ID="Open Gripper"/>
+      <RecoveryNode name="RecoveryFollowPath" number_of_retries="1">
+        <Action ID="FollowPath"/>
+        <Action ID="Spin" name="SpinRecovery"/>
+      </RecoveryNode>
+      <Action ID="Wait" name="Drive in a square"/>
+    </Sequence>
+  </BehaviorTree>
+  <BehaviorTree ID="Open Gripper" _description="An example showing how to open the gripper.">
+    <Action ID="Open"/>
+  </BehaviorTree>
+</root>
+"""
+
+
+def test_descriptions_are_phrases_and_names_read_as_words(tmp_path: Path) -> None:
+    """Descriptions written as documentation (MoveIt Pro's, Groot2's) are spoken as the
+    phrase they start with, or not at all; a control's type is dropped from its name, a
+    leaf's never; capitals of a name with spaces are lowered."""
+    tree_file = tmp_path / "documented.xml"
+    tree_file.write_text(DOCUMENTED, encoding="utf-8")
+    outcomes = tmp_path / "outcomes.yaml"
+    outcomes.write_text("nodes: {FollowPath: [FAILURE, SUCCESS]}\n", encoding="utf-8")
+    out = tmp_path / "documented.mcap"
+    ran = btlog("run", str(tree_file), "--outcomes", str(outcomes), "-o", str(out), "--quiet")
+    assert ran.returncode == 0, ran.stderr
+    asked = {
+        "What is your goal?": "My goal is to return the arm to its home pose.",
+        "Why are you doing this?": "I spin recovery in order to follow path.",
+        "What went wrong?": "I could not follow path because follow path failed.",
+        "How do you achieve your goal?": 'To achieve the goal "return the arm to its home '
+        'pose", I need to do 3 steps. 1. open gripper. 2. follow path. 3. drive in a square.',
+    }
+    for question, expected in asked.items():
+        done = btlog("ask", str(out), "--at", "1.2s", question)
+        assert done.stdout.strip() == expected, question
