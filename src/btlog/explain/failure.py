@@ -225,9 +225,9 @@ def diagnose(node: Node | None, state: State, tree: Tree | None = None) -> tuple
         if handler is not None:
             first = handler.falls_back_from(ancestor)
             found = None if first is None else _fallback_sentence(ancestor, first, state, goal)
-            if found is not None:
-                retries = [_retry_attempt(a, state, goal) for a in _retrying(ancestor, child)]
-                retries = [r for r in retries if r]
+            if first is not None and found is not None:
+                attempts = (_retry_attempt(a, state, goal) for a in _retrying(ancestor, child))
+                retries = [r for r in attempts if r]
                 if retries or not _retried_since(ancestor, first, state):
                     return " ".join([*retries, found[0]]), found[1]
             if handler.retried(ancestor) is not None and first is None:
