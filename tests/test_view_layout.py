@@ -167,6 +167,21 @@ def test_a_story_episode_links_to_its_moment(page, recordings: dict[str, Path]) 
         server.stop()
 
 
+def test_the_story_panel_counts_as_the_story_does(page, recordings: dict[str, Path]) -> None:
+    """The panel is ``btlog explain``'s story: the same count of failures, the failures by
+    design on their own line."""
+    server = Served(recordings["nav2"])
+    try:
+        opened(page, server.url)
+        panel = page.locator(".story").inner_text()
+        told = btlog("explain", str(recordings["nav2"])).stdout.splitlines()
+        assert told[1] == "Failures: 1." and told[1] in panel
+        assert told[4].strip() == "(6 failures by design chose another branch.)"
+        assert told[4].strip() in panel
+    finally:
+        server.stop()
+
+
 def test_two_panes_share_the_moment_and_the_width(page, tmp_path: Path) -> None:
     a = copy_recording(RECORDINGS / "taxi-optimal.mcap", tmp_path)
     b = copy_recording(RECORDINGS / "taxi-human.mcap", tmp_path)

@@ -79,13 +79,21 @@ def _algorithm7(tree: Tree, state: State, history: History | None) -> tuple[str,
 def diagnose_over_history(
     node: Node | None, tree: Tree, state: State, history: History | None
 ) -> tuple[str, Node | None]:
-    """Algorithm 7 for one current node (``diagnose``), its blamed leaf's failure told
-    with the run's history: grounded (``btlog.explain.grounds``), and, when the chain
+    """Algorithm 7 for one current node (``diagnose``) with the run's history: a handler's
+    child that failed by design (``by_design``) is skipped as a guard is, and the blamed
+    leaf's failure is grounded (``btlog.explain.grounds``), and, when the chain
     stopped at a decorator or control that failed with no execution node failing below
     it (an Inverter over a success), told by what decided it (``… because {check}
     succeeded.``)."""
-    text, leaf = diagnose(node, state, tree)
-    if history is None or leaf is None:
+    if history is None:
+        return diagnose(node, state, tree)
+
+    def designed(child: Node) -> bool:
+        failed = history.last([child.uid], (FAILURE,), 0, state.seq)
+        return failed is not None and by_design(tree, child, failed, history)
+
+    text, leaf = diagnose(node, state, tree, designed)
+    if leaf is None:
         return text, leaf
     if not leaf.is_execution:
         failed = history.last([leaf.uid], (FAILURE,), 0, state.seq)
@@ -321,14 +329,14 @@ def episode_sentence(tree: Tree, failed: Transition, leaf: Node, history: Histor
 
 def _last_real_failure(tree: Tree, handler: Node, now: int, history: History) -> Transition | None:
     """The last failure of one of ``handler``'s children before event ``now`` that was
-    not a guard's (at most ``GUARD_LOOKBACK`` failures back)."""
+    not by design (at most ``GUARD_LOOKBACK`` failures back)."""
     children = [c.uid for c in handler.children if actions_below(c)]
     hi = now
     for _ in range(GUARD_LOOKBACK):
         failed = history.last(children, (FAILURE,), 0, hi)
         if failed is None:
             return None
-        if not by_guard(tree, tree.node(failed.uid), failed, history):
+        if not by_design(tree, tree.node(failed.uid), failed, history):
             return failed
         hi = failed.seq
     return None

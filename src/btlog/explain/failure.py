@@ -38,7 +38,7 @@ story and the fleet's causes (``btlog.explain.causes.by_design``)."""
 
 from __future__ import annotations
 
-from collections.abc import Iterator
+from collections.abc import Callable, Iterator
 
 from btlog.explain.handlers import handler_of
 from btlog.explain.words import goal_words, is_named, named_ancestor, words
@@ -116,6 +116,15 @@ def _reactive_between(leaf: Node, top: Node) -> bool:
     return False
 
 
+#: Whether a handler's child failed by design (with the run's history: see
+#: ``btlog.explain.causes.by_design``); without it, guards are told from the state alone.
+ByDesign = Callable[[Node], bool]
+
+
+def _by_design(child: Node, state: State, designed: ByDesign | None) -> bool:
+    return failed_by_guard(child, state) or (designed is not None and designed(child))
+
+
 def failed_by_guard(child: Node, state: State) -> bool:
     """True when ``child``'s last failure was a guard's (``decided_by_guard``)."""
     began, failed = state.activation.get(child.uid), state.last_failure.get(child.uid)
@@ -147,12 +156,12 @@ def _spoken(node: Node, goal: str | None) -> str:
 
 
 def _fallback_sentence(
-    fallback: Node, first: Node, state: State, goal: str | None
+    fallback: Node, first: Node, state: State, goal: str | None, designed: ByDesign | None
 ) -> tuple[str, Node] | None:
     since = state.activation.get(fallback.uid)
     if since is None or not state.failed_since(first.uid, since):
         return None
-    if failed_by_guard(first, state):
+    if _by_design(first, state, designed):
         return None
     leaf = failed_leaf(first, state, since) or first
     said = _spoken(fallback, goal)
@@ -171,13 +180,17 @@ def _retry_target(retry: Node, goal: str | None) -> str | None:
     return words(named) if named is not None else goal
 
 
-def _retry_attempt(retry: Node, state: State, goal: str | None) -> str | None:
+def _retry_attempt(
+    retry: Node, state: State, goal: str | None, designed: ByDesign | None
+) -> str | None:
     attempts = state.retry_attempts.get(retry.uid, 0)
     if attempts <= 0:
         return None
     handler = handler_of(retry)
     child = handler.retried(retry) if handler is not None else None
-    if child is not None and (failed_by_guard(child, state) or _recovering(retry, child, state)):
+    if child is not None and (
+        _by_design(child, state, designed) or _recovering(retry, child, state)
+    ):
         return None
     target = _retry_target(retry, goal)
     if target is None:
@@ -194,8 +207,10 @@ def _recovering(handler: Node, child: Node, state: State) -> bool:
     return state.activation.get(child.uid, -1) <= state.last_failure.get(child.uid, -1)
 
 
-def _retry_sentence(retry: Node, state: State, goal: str | None) -> tuple[str, Node | None] | None:
-    head = _retry_attempt(retry, state, goal)
+def _retry_sentence(
+    retry: Node, state: State, goal: str | None, designed: ByDesign | None
+) -> tuple[str, Node | None] | None:
+    head = _retry_attempt(retry, state, goal, designed)
     if head is None:
         return None
     since = state.activation.get(retry.uid, 0)
@@ -212,10 +227,17 @@ def _retry_sentence(retry: Node, state: State, goal: str | None) -> tuple[str, N
     return f"{head} I could not {what} because {words(leaf)} failed.", leaf
 
 
-def diagnose(node: Node | None, state: State, tree: Tree | None = None) -> tuple[str, Node | None]:
+def diagnose(
+    node: Node | None,
+    state: State,
+    tree: Tree | None = None,
+    designed: ByDesign | None = None,
+) -> tuple[str, Node | None]:
     """Q6 for one current node (Algorithm 7) and the node it blames (None when nothing
     went wrong, or a retry's leaf is unknown); ``tree`` gives the goal's words for
-    handlers with nothing named above them."""
+    handlers with nothing named above them; ``designed`` tells, from the run's history, a
+    handler's child that failed by design (a ForceFailure or an Inverter over a
+    success), which is skipped as a guard is."""
     if node is None:
         return NOTHING_WRONG, None
     goal = goal_words(tree) if tree is not None else None
@@ -224,14 +246,20 @@ def diagnose(node: Node | None, state: State, tree: Tree | None = None) -> tuple
         handler = handler_of(ancestor)
         if handler is not None:
             first = handler.falls_back_from(ancestor)
-            found = None if first is None else _fallback_sentence(ancestor, first, state, goal)
+            found = (
+                None
+                if first is None
+                else _fallback_sentence(ancestor, first, state, goal, designed)
+            )
             if first is not None and found is not None:
-                attempts = (_retry_attempt(a, state, goal) for a in _retrying(ancestor, child))
+                attempts = (
+                    _retry_attempt(a, state, goal, designed) for a in _retrying(ancestor, child)
+                )
                 retries = [r for r in attempts if r]
                 if retries or not _retried_since(ancestor, first, state):
                     return " ".join([*retries, found[0]]), found[1]
             if handler.retried(ancestor) is not None and first is None:
-                retried = _retry_sentence(ancestor, state, goal)
+                retried = _retry_sentence(ancestor, state, goal, designed)
                 if retried is not None:
                     return retried
         child, ancestor = ancestor, ancestor.parent

@@ -57,6 +57,7 @@ QUESTIONS = {
 #: The event that decides which of several same-named nodes a question is about.
 _EVENT_OF = {
     "why_failed": "fail",
+    "why_not": "fail",
     "when_fail": "fail",
     "when_succeed": "succeed",
     "when_start": "start",

@@ -45,7 +45,7 @@ from btlog.explain.hierarchy import subgoals
 from btlog.explain.words import goal_words, seconds, words
 from btlog.history import ANY_STATUS, COMPLETIONS, History, Transition, activation_end
 from btlog.state import State
-from btlog.status import FAILURE, IDLE, RUNNING
+from btlog.status import FAILURE, IDLE, RUNNING, SUCCESS
 from btlog.tree.model import SUBTREE, Node, Tree
 
 #: Episodes looked at (the rest are counted).
@@ -213,8 +213,8 @@ class Story:
                 f"{MAX_EPISODES} are told."
             )
         if self.guards:
-            checks = "check" if self.guards == 1 else "checks"
-            out.append(f"  ({self.guards} guard {checks} chose another branch, as designed.)")
+            failures = "failure" if self.guards == 1 else "failures"
+            out.append(f"  ({self.guards} {failures} by design chose another branch.)")
         if self.subgoals:
             last = " (in the goal's last run)" if len(self.runs) > 1 else ""
             out.append(f"Subgoals{last}:")
@@ -297,8 +297,10 @@ def _reaction(tree: Tree, failed: Transition, history: History) -> Reaction | No
 
 
 class _Failures:
-    """The handled failures that are episodes: failures of a failure handler's children,
-    guards' left out (counted), read in pages."""
+    """The handled failures that may be episodes: failures of a failure handler's
+    children, guards' left out (counted), read in pages, each with whether it was made
+    from a success (by design: an episode only as the alternative a handler fell back to
+    in one, e.g. a ForceFailure clean-up; else counted with the guards)."""
 
     def __init__(self, tree: Tree, now: int, history: History) -> None:
         self.tree, self.now, self.history = tree, now, history
@@ -309,7 +311,7 @@ class _Failures:
         self.uids = [c.uid for c in handled if actions_below(c)]
         self.examined_all = True
 
-    def __iter__(self) -> Iterator[Transition]:
+    def __iter__(self) -> Iterator[tuple[Transition, bool]]:
         lo, examined = 0, 0
         while lo < self.now:
             page = self.history.transitions(self.uids, (FAILURE,), lo, self.now, PAGE)
@@ -318,10 +320,12 @@ class _Failures:
                 if examined > MAX_EXAMINED:
                     self.examined_all = False
                     return
-                if by_guard(self.tree, self.tree.node(failed.uid), failed, self.history):
+                node = self.tree.node(failed.uid)
+                if by_guard(self.tree, node, failed, self.history):
                     self.guards += 1
                 else:
-                    yield failed
+                    made = cause(self.tree, node, failed, self.history).status is SUCCESS
+                    yield failed, made
             if len(page) < PAGE:
                 return
             lo = page[-1].seq + 1
@@ -336,9 +340,9 @@ def _episodes(tree: Tree, state: State, history: History) -> tuple[list[Episode]
     episodes: list[Episode] = []
     failures = 0
     found = _Failures(tree, now, history)
-    for failed in found:
-        failures += 1
+    for failed, made in found:
         if len(by_leaf) >= MAX_EPISODES and failed.seq not in by_leaf:
+            failures += 1
             continue
         leaf_done = cause(tree, tree.node(failed.uid), failed, history)
         parent = tree.node(failed.uid).parent
@@ -347,6 +351,10 @@ def _episodes(tree: Tree, state: State, history: History) -> tuple[list[Episode]
         episode = by_leaf.get(leaf_done.seq)
         if episode is None and key in fell_back and fell_back[key][0] == failed.uid:
             episode = fell_back[key][1]  # the alternative failed too: the same episode
+        if episode is None and made:  # by design, and no episode's alternative
+            found.guards += 1
+            continue
+        failures += 1
         if episode is None:
             if len(episodes) >= MAX_EPISODES:
                 continue

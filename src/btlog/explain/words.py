@@ -60,12 +60,15 @@ _NOUN_PHRASE_STARTS = frozenset(
 
 def split_identifier(text: str) -> list[str]:
     """The words of an identifier: ``ClearLocalCostmap-Context`` → ``clear, local,
-    costmap, context``; acronyms stay upper case (``ReadIMUData`` → ``read, IMU, data``)."""
+    costmap, context``; acronyms stay upper case (``ReadIMUData`` → ``read, IMU, data``),
+    but an identifier all in capitals is shouted words, not acronyms (``TEST_ACTION_A`` →
+    ``test, action, a``)."""
+    shouted = not any(c.islower() for c in text)
     words = []
     for part in re.split(r"[_\-]+", text):
         for word in _WORD.findall(part):
             words.append(word if len(word) > 1 and word.isupper() else word.lower())
-    return words
+    return [w.lower() for w in words] if shouted and len(words) > 1 else words
 
 
 def _lower_initial(word: str) -> str:
@@ -181,10 +184,11 @@ def first_named(node: Node) -> Node:
 
 
 def goal_words(tree: Tree) -> str:
-    """The goal as an answer speaks of it: the root when it is named, else the main
-    tree's own name (its ``BehaviorTree`` ID)."""
+    """The goal as an answer speaks of it: the root when it is named or an execution
+    node (whose type is what it does), else the main tree's own name (its
+    ``BehaviorTree`` ID)."""
     root = tree.root
-    if is_named(root) or not tree.name:
+    if is_named(root) or root.is_execution or not tree.name:
         return words(root)
     return humanize(tree.name)
 

@@ -78,9 +78,21 @@ class SidePanels {
       link.addEventListener("click", (e) => { e.preventDefault(); this.pane.go({ t_ns: gap.from_ns }); });
       el("div", { class: "muted" }, item, gap.why);
     }
+    const runs = story.goal_runs || [];
+    if (runs.length > 1) {  // a goal run again and again (a tree ticked in a loop)
+      el("div", { class: "muted" }, box, `The goal ran ${runs.length} times:`);
+      const runList = el("ol", { class: "runs" }, box);
+      for (const run of runs) {
+        const item = el("li", {}, runList);
+        const link = el("a", { href: "#", class: "moment-link", "data-t-ns": run.start_ns }, item,
+          run.end_ns === null || run.end_ns === undefined ? `running since ${seconds(run.start_ns)}`
+            : `${run.result || "halted"} in ${seconds(run.end_ns - run.start_ns)}`);
+        link.addEventListener("click", (e) => { e.preventDefault(); this.pane.go({ t_ns: run.start_ns }); });
+      }
+    }
     const episodes = story.episodes || [];
-    el("div", { class: "muted" }, box, episodes.length ? `Failures: ${episodes.length}` +
-      (episodes.length === 1 ? "" : " (episodes told once)") : "No failures.");
+    const told = episodes.reduce((sum, episode) => sum + (episode.count || 1), 0);
+    el("div", { class: "muted" }, box, told ? `Failures: ${told}.` : "No failures.");
     const list = el("ol", { class: "episodes" }, box);
     for (const episode of episodes) {
       const item = el("li", {}, list);
@@ -97,15 +109,20 @@ class SidePanels {
       const handling = Array.isArray(episode.handling) ? episode.handling.join("; ") : episode.handling;
       if (handling) el("div", { class: "muted" }, item, handling);
     }
+    if (story.guard_failures) {
+      el("div", { class: "muted" }, box, `(${story.guard_failures} ` +
+        `${story.guard_failures === 1 ? "failure" : "failures"} by design chose another branch.)`);
+    }
     const subgoals = story.subgoals || [];
     if (!subgoals.length) return;
-    el("div", { class: "muted" }, box, "Subgoals:");
+    el("div", { class: "muted" }, box, runs.length > 1 ? "Subgoals (in the goal's last run):" : "Subgoals:");
     const table = el("table", { class: "kv subgoals" }, box);
     for (const sub of subgoals) {
       const tr = el("tr", {}, table);
       const name = el("td", {}, tr, sub.subgoal ?? sub.name ?? "");
       if (sub.depth) name.style.paddingLeft = `${0.3 + sub.depth}em`;
-      el("td", {}, tr, sub.result ?? "");
+      el("td", {}, tr, (sub.result ?? (sub.runs ? "not finished" : "not started")) +
+        (sub.runs > 1 ? `, ${sub.runs} runs` : ""));
       const when = el("td", {}, tr);
       if (sub.start_ns !== undefined && sub.start_ns !== null) {
         const link = el("a", { href: "#", class: "moment-link" }, when,
