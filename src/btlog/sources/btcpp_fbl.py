@@ -375,9 +375,10 @@ def import_fbl(
     tree = fbl_tree(log, tree_file, registry)
     uids = {node.uid: index for index, node in enumerate(log.nodes, 1)}
     changes = []
-    for t_us, uid, prev, new in log.transitions():
+    for index, (t_us, uid, prev, new) in enumerate(log.transitions()):
         if uid not in uids:
-            raise SourceError(f"{log.file}: a transition of node uid {uid}, not in the header")
+            offset = log.records_offset + index * RECORD.size
+            raise SourceError(f"{log.file}: byte {offset}: node uid {uid} is not in the header")
         changes.append((t_us, uids[uid], prev, new))
     first: dict[int, Status] = {i: Status(n.status) for i, n in enumerate(log.nodes, 1)}
     seen: set[int] = set()

@@ -57,6 +57,7 @@ from types import TracebackType
 from typing import Any
 
 import zstandard
+from mcap.exceptions import McapError
 from mcap.opcode import Opcode
 
 from btlog import documents
@@ -434,7 +435,7 @@ def _parsed(opcode: int, buffer: Any, body: int, end: int) -> Any:
     chunks; the caller counts it)."""
     try:
         return parse(opcode, buffer, body, end)
-    except (ValueError, struct.error, EOFError, IndexError):
+    except (McapError, ValueError, struct.error, EOFError, IndexError):
         return None
 
 
