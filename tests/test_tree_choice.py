@@ -123,3 +123,40 @@ def test_commands_that_load_trees_take_the_flags(tmp_path: Path) -> None:
     assert same.returncode == 0, same.stdout + same.stderr
     differs = btlog("diff", other, DATA / "two_roots.xml", "--main-tree", "Patrol")
     assert differs.returncode == 1
+
+
+def test_import_chooses_the_tree_of_its_tree_file_too(tmp_path: Path) -> None:
+    """``import --tree F`` takes ``--main-tree`` and ``--trees``; the chosen tree must be
+    the log's."""
+    recording = tmp_path / "dock.mcap"
+    result = btlog("run", DATA / "two_roots.xml", "--main-tree", "Dock", "-o", recording)
+    assert result.returncode == 0, result.stderr
+    log = tmp_path / "dock.btlog"
+    assert btlog("export", recording, "--to", "btlog", log).returncode == 0
+    assert_bad_input(
+        btlog("import", log, "--tree", DATA / "two_roots.xml", "-o", tmp_path / "a.mcap"),
+        "--main-tree ID",
+    )
+    chosen = btlog(
+        "import",
+        log,
+        "--tree",
+        DATA / "two_roots.xml",
+        "--main-tree",
+        "Dock",
+        "-o",
+        tmp_path / "b.mcap",
+    )
+    assert chosen.returncode == 0, chosen.stderr
+    wrong = btlog(
+        "import",
+        log,
+        "--tree",
+        DATA / "two_roots.xml",
+        "--main-tree",
+        "Patrol",
+        "-o",
+        tmp_path / "c.mcap",
+    )
+    assert_bad_input(wrong, "not the tree of this log")
+    assert_bad_input(btlog("import", log, "--main-tree", "Dock"), "give it")

@@ -6,8 +6,11 @@ from __future__ import annotations
 
 from concurrent.futures import ThreadPoolExecutor
 from pathlib import Path
+from typing import Any
 
 import pytest
+from hypothesis import given, settings
+from hypothesis import strategies as st
 
 from btlog.tree.loader import TreeError, load_tree_text
 from tests.cli_support import assert_bad_input, btlog
@@ -230,3 +233,64 @@ def test_bytes_that_are_not_utf8_and_a_nul_byte() -> None:
 
 def _read_bytes(data: bytes) -> set[str]:
     return {node.name for node in load_tree_text(data)}
+
+
+# -- properties: agreement with a conforming parser, and no crash on any input ----------
+_NAMES = st.from_regex(r"[A-Za-z_][A-Za-z0-9_.-]{0,8}", fullmatch=True)
+_TEXT = st.text(
+    st.characters(blacklist_categories=("Cs", "Cc", "Cn", "Co"), blacklist_characters="<>&\"'"),
+    max_size=12,
+)
+
+
+@st.composite
+def _documents(draw: st.DrawFn, depth: int = 0) -> str:
+    """A well-formed element: attributes without tabs or newlines (which XML would turn
+    into spaces and tinyxml2 keeps), children, comments, text."""
+    tag = draw(_NAMES)
+    names = draw(st.lists(_NAMES, max_size=4, unique=True))
+    attributes = "".join(f' {n}="{draw(_TEXT)}"' for n in names)
+    if depth >= 3 or not draw(st.booleans()):
+        return f"<{tag}{attributes}/>"
+    parts = []
+    for _ in range(draw(st.integers(0, 3))):
+        kind = draw(st.sampled_from(["element", "comment", "text", "newline"]))
+        if kind == "element":
+            parts.append(draw(_documents(depth + 1)))
+        elif kind == "comment":
+            parts.append(f"<!-- {draw(_TEXT)} -->")
+        elif kind == "text":
+            parts.append(draw(_TEXT))
+        else:
+            parts.append("\n")
+    return f"<{tag}{attributes}>{''.join(parts)}</{tag}>"
+
+
+def _shape(element: Any) -> tuple:
+    """Tag, attributes, line and children of an lxml or a btlog element."""
+    children = [c for c in element if isinstance(c.tag, str)]
+    return (element.tag, dict(element.attrib), element.sourceline, [_shape(c) for c in children])
+
+
+@settings(max_examples=200, deadline=None, derandomize=True)
+@given(_documents())
+def test_well_formed_xml_reads_as_a_conforming_parser_reads_it(document: str) -> None:
+    """Where XML and tinyxml2 agree (well-formed documents), btlog's reader gives lxml's
+    elements, attributes and lines."""
+    from lxml import etree
+
+    from btlog.tree.xml_syntax import parse
+
+    expected = etree.fromstring(document.encode(), etree.XMLParser(resolve_entities=False))
+    assert _shape(parse(document.encode(), 256, 1000)) == _shape(expected)
+
+
+@settings(max_examples=300, deadline=None, derandomize=True)
+@given(st.binary(max_size=300) | st.text(alphabet="<>/!?-[]&;=\"' ab\n\t\r#x", max_size=120))
+def test_any_input_is_read_or_refused_in_one_line(data: bytes | str) -> None:
+    from btlog.tree.xml_syntax import XmlSyntaxError, parse
+
+    try:
+        parse(data if isinstance(data, bytes) else data.encode(), 256, 1000)
+    except XmlSyntaxError as error:
+        assert error.line >= 1 and "\n" not in error.problem

@@ -8,9 +8,11 @@ from argparse import Namespace
 from pathlib import Path
 from typing import Any
 
+from btlog.cli.tree_flags import add_tree_flags
 from btlog.outputs import refuse_overwrite
 from btlog.render.escape import safe
 from btlog.sources.builder import DEFAULT_TICK_GAP_NS, BuildResult
+from btlog.tree.loader import TreeSource
 from btlog.tree.registry import Registry
 
 
@@ -31,6 +33,7 @@ def add_parsers(commands: argparse._SubParsersAction) -> None:
     )
     imp.add_argument("-o", "--output", metavar="OUT", help="recording to write (FILE.mcap)")
     imp.add_argument("--tree", metavar="XML", help="the tree file (checked against the log's)")
+    add_tree_flags(imp)
     imp.add_argument("--session", metavar="N", type=int, help="SQLite: only this session")
     imp.add_argument("--goal", metavar="N", type=int, help="Nav2 bag: only goal N (from 1)")
     _add_model_and_gap(imp)
@@ -118,6 +121,15 @@ def _add_model_and_gap(parser: argparse.ArgumentParser) -> None:
     )
 
 
+def _tree_source(args: Namespace) -> TreeSource | None:
+    """``--tree`` as loaded with ``--main-tree`` and ``--trees`` (which need it)."""
+    if args.tree is None:
+        if args.main_tree or args.trees:
+            raise ValueError("--main-tree and --trees choose the tree of --tree XML: give it")
+        return None
+    return TreeSource(args.tree, args.main_tree, tuple(args.trees))
+
+
 def _registry(args: Namespace) -> Registry | None:
     from btlog.tree.loader import load_nodes_model
 
@@ -144,6 +156,8 @@ def import_(args: Namespace) -> int:
     from btlog.sources import detect
 
     kind = detect(args.file)
+    # --tree with --main-tree and --trees: one path-like value every importer accepts
+    args.tree = _tree_source(args)
     registry, gap = _registry(args), _gap_ns(args)
     default = Path(args.output) if args.output else Path(Path(args.file).name).with_suffix(".mcap")
     if args.output:

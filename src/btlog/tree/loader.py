@@ -26,6 +26,7 @@ from __future__ import annotations
 
 import os
 from collections.abc import Sequence
+from dataclasses import dataclass
 from pathlib import Path
 
 from btlog.tree.builder import TreeBuilder
@@ -36,6 +37,7 @@ from btlog.tree.xml_source import TreeError, parse_xml, read_xml_file
 
 __all__ = [
     "TreeError",
+    "TreeSource",
     "load_nodes_model",
     "load_tree",
     "load_tree_text",
@@ -79,6 +81,23 @@ def tree_files(trees: Sequence[str | os.PathLike]) -> list[tuple[Path, bool]]:
     return files
 
 
+@dataclass(frozen=True)
+class TreeSource(os.PathLike):
+    """A tree file with the files registered beside it and the tree to create
+    (``--trees``, ``--main-tree``): a path wherever a tree file is expected, which
+    ``load_tree`` loads with both."""
+
+    path: str
+    main_tree: str | None = None
+    trees: tuple[str, ...] = ()
+
+    def __fspath__(self) -> str:
+        return self.path
+
+    def __str__(self) -> str:
+        return self.path
+
+
 def load_tree(
     source: str | os.PathLike,
     registry: Registry | None = None,
@@ -89,7 +108,12 @@ def load_tree(
     """Load a tree from an XML file (its includes resolved against its folder), as a BT.CPP
     program registers it, then the files and folders of ``trees`` (``--trees``), and
     creates ``main_tree`` (``--main-tree``; see ``Documents.main_tree``);
-    ``accept_unknown`` accepts node types btlog has no implementation of (imports)."""
+    ``accept_unknown`` accepts node types btlog has no implementation of (imports). A
+    ``TreeSource`` brings its own ``main_tree`` and ``trees``."""
+    if isinstance(source, TreeSource):
+        main_tree = main_tree or source.main_tree
+        trees = (*source.trees, *trees)
+        source = source.path
     data = read_xml_file(source)
     return _load(data, str(source), Path(source).parent, registry, main_tree, accept_unknown, trees)
 
