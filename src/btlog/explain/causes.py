@@ -39,7 +39,7 @@ checks the candidate and gives the words. Each handler's last such window is loo
 
 from __future__ import annotations
 
-from btlog.explain.failure import NOTHING_WRONG, decided_by_guard, diagnose
+from btlog.explain.failure import NOTHING_WRONG, decided_by_guard, diagnose, spoken
 from btlog.explain.grounds import grounded, grounds
 from btlog.explain.handlers import FallbackHandler, handler_of
 from btlog.explain.hierarchy import current_nodes, per_node
@@ -321,10 +321,10 @@ def episode_sentence(tree: Tree, failed: Transition, leaf: Node, history: Histor
     text, _blamed = diagnose_over_history(then_tree.nodes.get(leaf.uid), then_tree, then, history)
     if text != NOTHING_WRONG:
         return text
-    node = tree.node(failed.uid)
+    node = spoken(tree.node(failed.uid), goal_words(tree))
     done = history.last([leaf.uid], (FAILURE,), 0, failed.seq + 1)
     reason = "" if done is None else grounds(tree, leaf, done, history)
-    return f"I could not {words(node)} because {words(leaf)} failed{reason}."
+    return f"I could not {node} because {words(leaf)} failed{reason}."
 
 
 def _last_real_failure(tree: Tree, handler: Node, now: int, history: History) -> Transition | None:

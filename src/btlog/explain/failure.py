@@ -146,7 +146,7 @@ def _clause_node(leaf: Node, handler: Node) -> Node | None:
     return None
 
 
-def _spoken(node: Node, goal: str | None) -> str:
+def spoken(node: Node, goal: str | None) -> str:
     """The words of ``node`` if it is named, else of its nearest named ancestor; the
     goal's words (``goal``) when nothing above is named."""
     named = node if is_named(node) else named_ancestor(node)
@@ -164,7 +164,7 @@ def _fallback_sentence(
     if _by_design(first, state, designed):
         return None
     leaf = failed_leaf(first, state, since) or first
-    said = _spoken(fallback, goal)
+    said = spoken(fallback, goal)
     text = f"I could not {said} because "
     step = _clause_node(leaf, fallback)
     if step is not None and words(step) != said:

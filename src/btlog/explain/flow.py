@@ -15,7 +15,7 @@ from collections.abc import Callable
 from typing import NamedTuple
 
 from btlog.explain.handlers import attempts_of
-from btlog.explain.words import goal_words, words
+from btlog.explain.words import act, goal_words
 from btlog.history import History
 from btlog.state import State
 from btlog.status import FAILURE, RUNNING, SUCCESS, Status
@@ -236,6 +236,6 @@ def next_sentence(tree: Tree, node: Node, state: State, history: History | None)
     """``After I {d(current)}, I will {d(next)}.`` (or ``… I will have finished …``)."""
     following = after(node, SUCCESS, state, history)
     if following is None:
-        return f"After I {words(node)}, I will have finished {goal_words(tree)}."
-    names = list(dict.fromkeys(words(n) for n in following))
-    return f"After I {words(node)}, I will {' and '.join(names)}."
+        return f"After I {act(node)}, I will have finished {goal_words(tree)}."
+    names = list(dict.fromkeys(act(n) for n in following))
+    return f"After I {act(node)}, I will {' and '.join(names)}."

@@ -23,7 +23,7 @@ from __future__ import annotations
 
 from collections.abc import Callable
 
-from btlog.explain.words import goal_words, is_named, words
+from btlog.explain.words import act, goal_words, is_named, words
 from btlog.state import State
 from btlog.status import IDLE, RUNNING
 from btlog.tree.model import DECORATOR, SUBTREE, Node, Tree
@@ -58,7 +58,7 @@ def per_node(nodes: list[Node], render: Callable[[Node], str], empty: str) -> st
 
 def doing(node: Node) -> str:
     """Q1 (Algorithm 1): ``I {d(n)}.``"""
-    return f"I {words(node)}."
+    return f"I {act(node)}."
 
 
 def reason_node(node: Node) -> Node | None:
@@ -76,11 +76,11 @@ def why(node: Node, tree: Tree | None = None) -> str:
     in order to the goal (the main tree's name), and the root itself is the goal."""
     reason = reason_node(node)
     if reason is not None:
-        return f"I {words(node)} in order to {words(reason)}."
+        return f"I {act(node)} in order to {words(reason)}."
     goal_said = goal_words(tree) if tree is not None else None
     if node.parent is None or goal_said is None or goal_said == words(node):
-        return f"I {words(node)} because it is my goal."
-    return f"I {words(node)} in order to {goal_said}."
+        return f"I {act(node)} because it is my goal."
+    return f"I {act(node)} in order to {goal_said}."
 
 
 def _root_of(node: Node) -> Node:
@@ -172,7 +172,7 @@ def how(target: Node | None, level: str, tree: Tree | None = None) -> str:
         return f"Sorry. I don't have a {level}."
     found = steps(target)
     count = len(found)
-    listed = " ".join(f"{i}. {words(n)}." for i, n in enumerate(found, 1))
+    listed = " ".join(f"{i}. {act(n)}." for i, n in enumerate(found, 1))
     noun = "step" if count == 1 else "steps"
     name = goal_words(tree) if tree is not None and target is tree.root else words(target)
     text = f'To achieve the {level} "{name}", I need to do {count} {noun}.'

@@ -32,7 +32,7 @@ from btlog.explain.hierarchy import (
 )
 from btlog.explain.insertion import InsertionPlan, find_requested, plan_insertion
 from btlog.explain.recall import about, find_nodes, how_long, when_last, why_failed, why_not
-from btlog.explain.words import goal_words, words
+from btlog.explain.words import act, goal_words, words
 from btlog.history import History
 from btlog.state import State
 from btlog.tree.model import Node, Tree
@@ -216,7 +216,7 @@ def _next(tree: Tree, state: State, history: History | None, nodes: list[Node]) 
     if history is not None and last_completion(tree.root, state, history) is not None:
         return f"I have finished {goal_words(tree)}."
     if not nodes:
-        first = dict.fromkeys(words(n) for n in entry(tree.root, state))
+        first = dict.fromkeys(act(n) for n in entry(tree.root, state))
         return f"I will {' and '.join(first)} first."
     return per_node(nodes, lambda n: next_sentence(tree, n, state, history), "")
 

@@ -10,13 +10,19 @@ only, so it is the same live and post hoc.
 from __future__ import annotations
 
 from btlog.explain.causes import because
+from btlog.explain.failure import spoken
 from btlog.explain.grounds import grounds
 from btlog.explain.handlers import FallbackHandler, handler_of
-from btlog.explain.words import humanize, is_named, seconds, words
+from btlog.explain.words import act, goal_words, humanize, is_named, seconds, words
 from btlog.history import ANY_STATUS, COMPLETIONS, History, Transition, activation_end
 from btlog.state import State
-from btlog.status import FAILURE, RUNNING, SUCCESS, Status
+from btlog.status import FAILURE, IDLE, RUNNING, SUCCESS, Status
 from btlog.tree.model import Node, Tree
+
+#: How far after a halt (events, and ns of the run's clock: the same tick) the ancestor
+#: that halted a node returns its result.
+HALT_WINDOW = 4096
+HALT_WINDOW_NS = 1_000_000
 
 #: "When did X last …?": the statuses asked about and the words of the answer.
 EVENTS: dict[str, tuple[tuple[Status, ...], bool, str, str]] = {
@@ -38,7 +44,7 @@ def find_nodes(tree: Tree, text: str) -> list[Node]:
     wanted_bare = wanted[4:] if wanted.startswith("the ") else wanted
     groups: dict[int, list[tuple[int, int, Node]]] = {}
     for order, node in enumerate(tree):
-        names = {_fold(node.name), _fold(words(node))}
+        names = {_fold(node.name), _fold(words(node)), _fold(act(node))}
         if (
             node.path == text
             or _fold(node.path) == wanted
@@ -109,7 +115,7 @@ def why_not(tree: Tree, node: Node, state: State, history: History) -> str:
 
 
 def _not_yet(node: Node) -> str:
-    return f"I have not started to {words(node)} yet."
+    return f"I have not started to {act(node)} yet."
 
 
 def _last_activation(tree: Tree, node: Node, state: State, history: History) -> str:
@@ -120,12 +126,12 @@ def _last_activation(tree: Tree, node: Node, state: State, history: History) -> 
     assert start is not None
     end = activation_end(history, start, now)
     if end is None:
-        return f"I am still trying to {words(node)}: I started at {seconds(start.t_ns)} s."
+        return f"I am still trying to {act(node)}: I started at {seconds(start.t_ns)} s."
     if end.status is SUCCESS:
-        return f"I did {words(node)}."
+        return f"I did {act(node)}."
     if end.status is FAILURE:
-        return f"I tried to {words(node)}, but {_because_of(tree, node, end, history)}."
-    text = f"I started to {words(node)} at {seconds(start.t_ns)} s, but stopped at "
+        return f"I tried to {act(node)}, but {_because_of(tree, node, end, history)}."
+    text = f"I started to {act(node)} at {seconds(start.t_ns)} s, but stopped at "
     return text + f"{seconds(end.t_ns)} s{_halted_because(tree, node, start, end, history)}."
 
 
@@ -142,10 +148,15 @@ def _halted_because(
     tree: Tree, node: Node, start: Transition, halt: Transition, history: History
 ) -> str:
     """`` because {cause}`` of the halt: the completion of the nearest ancestor that
-    completed while X ran (a reactive sibling's check, a Timeout, a Parallel's other
-    branch), or "" when the tree itself was stopped."""
+    completed while X ran (a Timeout, a Parallel's other branch) or that halted it and
+    then returned its result (a reactive parent whose check failed), or "" when the tree
+    itself was stopped."""
     ancestors = [a.uid for a in node.ancestors()]
     done = history.last(ancestors, COMPLETIONS, start.seq, halt.seq)
+    if done is None:  # halted by an ancestor that completes right after its children stop
+        done = history.first(ancestors, COMPLETIONS, halt.seq, halt.seq + HALT_WINDOW)
+        if done is not None and done.t_ns - halt.t_ns > HALT_WINDOW_NS:
+            done = None
     if done is None:
         return ""
     return f" because {because(tree, tree.node(done.uid), done, history)}"
@@ -162,12 +173,32 @@ def _reason(tree: Tree, asked: Node, node: Node, since: int, state: State, histo
         fallback = True
     done = history.last(earlier, (SUCCESS,) if fallback else (FAILURE,), since, state.seq)
     if done is None:
-        return _not_yet(asked)
+        return _ended_before(tree, asked, parent, since, state, history) or _not_yet(asked)
     sibling = tree.node(done.uid)
     if fallback and (is_named(sibling) or sibling.is_execution):
-        return f"I did not {words(asked)} because {words(sibling)} succeeded."
+        return f"I did not {act(asked)} because {words(sibling)} succeeded."
     # an unnamed branch is never spoken of: what decided its result is
-    return f"I did not {words(asked)} because {because(tree, sibling, done, history)}."
+    return f"I did not {act(asked)} because {because(tree, sibling, done, history)}."
+
+
+def _ended_before(
+    tree: Tree, asked: Node, parent: Node, since: int, state: State, history: History
+) -> str | None:
+    """When ``parent``'s activation that began at ``since`` is over without reaching
+    ``asked`` (it was stopped, or completed otherwise): ``I did not {X}: {scope} was
+    stopped at {t} s, before it was reached{because}.``; None while it still runs."""
+    start = history.first([parent.uid], ANY_STATUS, since, since + 1)
+    end = None if start is None else activation_end(history, start, state.seq)
+    if start is None or end is None:
+        return None
+    scope = spoken(parent, goal_words(tree))
+    if end.status is IDLE:
+        how = f"was stopped at {seconds(end.t_ns)} s"
+        reason = _halted_because(tree, parent, start, end, history)
+    else:
+        how = f"{'failed' if end.status is FAILURE else 'succeeded'} at {seconds(end.t_ns)} s"
+        reason = ""
+    return f"I did not {act(asked)}: {scope} {how}, before it was reached{reason}."
 
 
 def when_last(node: Node, event: str, state: State, history: History) -> str:

@@ -33,6 +33,8 @@ recorded):
   has spaces is kept as written but for a capitalised first word ("Drive in a square"
   → "drive in a square") or the capitals of a Title Case name ("Close Gripper" → "close
   gripper"), so the paper's answers do not change;
+- in the slots of a sentence that say what the robot does, a condition is the check it
+  is (``act``: "check battery OK"; the paper's "check if grasped" as it is);
 - a node is **named** when it has such words of its own: a usable description, or a
   name that is neither empty nor its type. Only named nodes (and SubTrees) are
   purposes, subgoals, steps or goals; an unnamed control node is never spoken of — the
@@ -44,10 +46,14 @@ from __future__ import annotations
 import re
 
 from btlog.tree.descriptions import DESCRIPTION
-from btlog.tree.model import CONTROL, DECORATOR, SUBTREE, Node, Tree
+from btlog.tree.model import CONDITION, CONTROL, DECORATOR, SUBTREE, Node, Tree
 
 _IDENTIFIER = re.compile(r"^[A-Za-z_][A-Za-z0-9_\-]*$")
-_WORD = re.compile(r"[A-Z]+(?=[A-Z][a-z])|[A-Z]?[a-z]+[0-9]*|[A-Z]+[0-9]*|[0-9]+")
+_WORD = re.compile(
+    r"[A-Z]+(?=[A-Z][a-z])|[0-9]+[A-Z]+(?=[A-Z][a-z]|[^A-Za-z]|$)|[A-Z]?[a-z]+|[A-Z]+|[0-9]+"
+)
+#: First words that make a name a place, not an action: "ToFridge" is "go to fridge".
+_MOTION_PREPOSITIONS = frozenset({"to", "towards", "toward"})
 _SENTENCE_END = re.compile(r"(?<=[.!?])\s")
 #: A description longer than this (its first sentence) is documentation, not words.
 MAX_PHRASE_WORDS = 14
@@ -62,13 +68,17 @@ def split_identifier(text: str) -> list[str]:
     """The words of an identifier: ``ClearLocalCostmap-Context`` → ``clear, local,
     costmap, context``; acronyms stay upper case (``ReadIMUData`` → ``read, IMU, data``),
     but an identifier all in capitals is shouted words, not acronyms (``TEST_ACTION_A`` →
-    ``test, action, a``)."""
+    ``test, action, a``); numbers are words of their own, a dimension kept whole
+    (``GoToLocation2`` → ``go, to, location, 2``; ``GetMasks2DFromExemplar`` → ``get,
+    masks, 2D, from, exemplar``); a name that starts with "to" is a place to go
+    (``ToFridge`` → ``go, to, fridge``)."""
     shouted = not any(c.islower() for c in text)
     words = []
     for part in re.split(r"[_\-]+", text):
         for word in _WORD.findall(part):
             words.append(word if len(word) > 1 and word.isupper() else word.lower())
-    return [w.lower() for w in words] if shouted and len(words) > 1 else words
+    words = [w.lower() for w in words] if shouted and len(words) > 1 else words
+    return ["go", *words] if len(words) > 1 and words[0] in _MOTION_PREPOSITIONS else words
 
 
 def _lower_initial(word: str) -> str:
@@ -163,6 +173,17 @@ def words(node: Node) -> str:
         structural = node.kind in (CONTROL, DECORATOR)
         return humanize(node.name, node.type if structural else "")
     return humanize(node.description)
+
+
+def act(node: Node) -> str:
+    """The node as what the robot does, for the verb slots of answers ("I {…}", "in
+    order to …", "I will …", "I did …"): its words, a condition's as the check it is
+    ("check battery OK", "check goal updated") unless its own words already begin with
+    "check" or come from its description."""
+    said = words(node)
+    if node.kind != CONDITION or own_phrase(node) or said.split(" ", 1)[0].lower() == "check":
+        return said
+    return f"check {said}"
 
 
 def named_ancestor(node: Node, *, skip_decorators: bool = False) -> Node | None:
