@@ -35,6 +35,8 @@ MAX_SCRIPT_CODE = 64 * 1024
 MAX_SCRIPT_NESTING = 64
 #: Values of one outcomes or expectations file once its YAML aliases are expanded.
 MAX_DOCUMENT_VALUES = 1_000_000
+#: Seconds a ``btlog sql`` query may run unless ``--timeout`` says otherwise.
+DEFAULT_QUERY_TIMEOUT = 60.0
 #: Any count, tick or seq given by a user, and any duration in ns: a signed 64-bit integer.
 MAX_INT64 = 2**63 - 1
 

@@ -21,6 +21,7 @@ from btlog.explain.hierarchy import current_nodes
 from btlog.explain.insertion import apply_to_copy
 from btlog.explain.questions import Answer, answer
 from btlog.explain.questions import explain as explain_all
+from btlog.limits import seconds
 from btlog.outputs import refuse_overwrite
 from btlog.render.escape import safe
 from btlog.render.terminal import blackboard_lines, format_ns, make_console, tree_lines
@@ -331,7 +332,9 @@ def timeline_line(row: dict) -> str:
 
 # -- sql ---------------------------------------------------------------------------------
 def sql(args: Namespace) -> int:
-    """``btlog sql``: run a query over one or many runs, read-only (``RunDatabase.lock``)."""
+    """``btlog sql``: run a query over one or many runs, read-only (``RunDatabase.lock``),
+    within ``--timeout`` seconds."""
+    args.timeout = seconds(args.timeout, "--timeout") or None
     if args.lake is not None:
         if args.runs:
             raise ValueError("sql: give recordings or --lake LAKE, not both")
@@ -344,7 +347,7 @@ def sql(args: Namespace) -> int:
         database = _open_runs(*args.runs)
         try:
             database.lock()
-            columns, rows = database.sql(args.query)
+            columns, rows = database.sql(args.query, timeout=args.timeout)
         finally:
             database.close()
     if args.format == "json":

@@ -120,18 +120,10 @@ def node_labels(rows: list[dict]) -> list[str]:
 
 
 def lake_sql(args: Namespace) -> tuple[list[str], list[tuple]]:
-    """``btlog sql --lake LAKE QUERY``: one read-only query over the lake's views."""
-    import duckdb
-
-    from btlog.errors import one_line
+    """``btlog sql --lake LAKE QUERY``: one read-only query over the lake's views, within
+    ``--timeout`` seconds."""
     from btlog.fleet.lake import reading_lake
-    from btlog.replay.database import ReplayError, only_queries
+    from btlog.replay.database import run_query
 
     with reading_lake(args.lake) as con:
-        try:
-            only_queries(con, args.query)
-            cursor = con.execute(args.query)
-            columns = [d[0] for d in cursor.description or ()]
-            return columns, cursor.fetchall() if cursor.description else []
-        except duckdb.Error as error:
-            raise ReplayError(f"SQL error: {one_line(error)}") from None
+        return run_query(con, args.query, timeout=args.timeout)

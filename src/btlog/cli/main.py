@@ -20,7 +20,7 @@ from btlog import __version__
 from btlog.cli.limit_flags import add_limit_flags, apply_limit_flags
 from btlog.cli.tree_flags import add_tree_flags
 from btlog.errors import EXIT_BAD_INPUT, EXIT_BUG, EXIT_OK, one_line
-from btlog.limits import fit_address_space
+from btlog.limits import DEFAULT_QUERY_TIMEOUT, fit_address_space
 from btlog.render.escape import safe
 
 #: Options whose value may be a negative moment (``--at -2s``, ``--ask "-2s=…"``).
@@ -202,6 +202,13 @@ def build_parser() -> argparse.ArgumentParser:
         "like the tables, plus causes; columns domain, date and run_id from the folders)",
     )
     sql.add_argument("--format", choices=("table", "csv", "json"), default="table")
+    sql.add_argument(
+        "--timeout",
+        metavar="SECONDS",
+        type=float,
+        default=DEFAULT_QUERY_TIMEOUT,
+        help=f"stop the query after SECONDS (default {DEFAULT_QUERY_TIMEOUT:g}; 0: no limit)",
+    )
 
     diff = commands.add_parser("diff", help="divergence between two runs (or a run and a tree)")
     diff.add_argument("a", metavar="A", help="a recording")

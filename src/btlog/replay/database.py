@@ -35,6 +35,7 @@ from btlog.record.reader import RecordingError
 from btlog.replay import cache
 from btlog.replay import ingest as ingestion
 from btlog.replay.connections import connect
+from btlog.replay.deadline import QueryTimeout, time_limit
 from btlog.replay.moments import MomentError
 from btlog.replay.run import ReplayError, Run, RunInfo, TimelineEntry
 from btlog.replay.snapshots import DEFAULT_SNAPSHOT_EVERY
@@ -299,23 +300,12 @@ class RunDatabase:
         self.locked = True
 
     def sql(
-        self, query: str, params: Sequence | dict | None = None
+        self, query: str, params: Sequence | dict | None = None, timeout: float | None = None
     ) -> tuple[list[str], list[tuple]]:
-        """Run ``query`` (with ``params`` bound to its ``?`` or ``$name`` placeholders);
-        returns (column names, rows). Once ``lock``ed, only queries are run."""
-        try:
-            if self.locked:
-                only_queries(self.con, query)
-            cursor = (
-                self.con.execute(query, params) if params is not None else self.con.execute(query)
-            )
-            if cursor is None:  # DuckDB's answer to a query without a statement
-                raise ReplayError(f"SQL error: no statement in {query!r}")
-            columns = [d[0] for d in cursor.description or ()]
-            rows = cursor.fetchall() if cursor.description else []
-        except duckdb.Error as error:
-            raise ReplayError(f"SQL error: {one_line(error)}") from None
-        return columns, rows
+        """Run ``query`` (with ``params`` bound to its ``?`` or ``$name`` placeholders)
+        within ``timeout`` seconds (None: no limit); returns (column names, rows). Once
+        ``lock``ed, only queries are run."""
+        return run_query(self.con, query, params, queries_only=self.locked, timeout=timeout)
 
     def close(self) -> None:
         """Close the connection (the caches stay on disk)."""
@@ -326,6 +316,32 @@ class RunDatabase:
 
     def __exit__(self, *exc_info: object) -> None:
         self.close()
+
+
+def run_query(
+    con: duckdb.DuckDBPyConnection,
+    query: str,
+    params: Sequence | dict | None = None,
+    queries_only: bool = True,
+    timeout: float | None = None,
+) -> tuple[list[str], list[tuple]]:
+    """Run ``query`` on ``con`` (only queries when ``queries_only``, see
+    ``only_queries``) within ``timeout`` seconds; returns (column names, rows).
+    ``ReplayError`` (one line) for bad SQL or a query stopped at its time limit."""
+    try:
+        with time_limit(con, timeout):
+            if queries_only:
+                only_queries(con, query)
+            cursor = con.execute(query, params) if params is not None else con.execute(query)
+            if cursor is None:  # DuckDB's answer to a query without a statement
+                raise ReplayError(f"SQL error: no statement in {query!r}")
+            columns = [d[0] for d in cursor.description or ()]
+            rows = cursor.fetchall() if cursor.description else []
+    except QueryTimeout as error:
+        raise ReplayError(str(error)) from None
+    except duckdb.Error as error:
+        raise ReplayError(f"SQL error: {one_line(error)}") from None
+    return columns, rows
 
 
 def only_queries(con: duckdb.DuckDBPyConnection, query: str) -> None:
