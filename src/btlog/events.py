@@ -64,9 +64,16 @@ class BlackboardWrite(NamedTuple):
     writer_uid: int | None
 
 
+#: The operations of a ``TreeMutation``.
+INSERT = "insert"
+PRUNE = "prune"
+
+
 class TreeMutation(NamedTuple):
     """The tree changed: ``nodes`` (records with fresh uids) inserted under ``parent_uid``
-    right after ``after_uid``, because of ``question``."""
+    right after ``after_uid``, because of ``question`` (``op`` ``INSERT``); or, ``op``
+    ``PRUNE`` (a py_trees ``prune_subtree``), the subtree ``nodes`` describes taken out
+    from under ``parent_uid`` (its uids are never used again)."""
 
     seq: int
     t_ns: int
@@ -79,7 +86,7 @@ class TreeMutation(NamedTuple):
 
     @property
     def inserted_root_uid(self) -> int:
-        """The uid of the inserted subtree's root."""
+        """The uid of the inserted (or pruned) subtree's root."""
         return self.nodes[0]["uid"]
 
 

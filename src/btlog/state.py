@@ -25,6 +25,7 @@ from dataclasses import dataclass, field
 from typing import Any
 
 from btlog.events import (
+    PRUNE,
     BlackboardWrite,
     Event,
     StatusChange,
@@ -111,7 +112,7 @@ class StateProjection(Subscriber):
         self.state = state if state is not None else State()
         self._index_tree()
         for mutation in self.state.mutations:
-            self._insert(mutation)
+            self._change_tree(mutation)
 
     def _index_tree(self) -> None:
         self._execution = {n.uid for n in self.tree if n.kind in EXECUTION_KINDS}
@@ -180,7 +181,7 @@ class StateProjection(Subscriber):
         state.tick = mutation.tick
         state.halted = None
         state.mutations.append(mutation)
-        self._insert(mutation)
+        self._change_tree(mutation)
 
     def on_tick(self, record: TickRecord) -> None:
         """Ticks carry no state beyond their events."""
@@ -193,6 +194,22 @@ class StateProjection(Subscriber):
             self.on_write(*event)
         else:
             self.on_mutation(event)
+
+    def _change_tree(self, mutation: TreeMutation) -> None:
+        if mutation.op == PRUNE:
+            self._prune(mutation)
+        else:
+            self._insert(mutation)
+
+    def _prune(self, mutation: TreeMutation) -> None:
+        """Take the subtree out; its nodes have no status any more."""
+        node = self.tree.nodes.get(mutation.inserted_root_uid)
+        if node is None or node.parent is None:
+            return
+        for removed in node.walk():
+            self.state.status.pop(removed.uid, None)
+        self.tree.remove(node)
+        self._index_tree()
 
     def _insert(self, mutation: TreeMutation) -> None:
         parent = self.tree.node(mutation.parent_uid)

@@ -36,10 +36,12 @@ def short_run_id(metadata: dict[str, Any], path: str) -> str:
 
 def _node_rows(tree: dict, mutations: list[dict]) -> list[tuple]:
     """(uid, parent_uid, idx, depth, kind, type, name, path, ports, added_seq) per node:
-    the recorded tree's, then each mutation's inserted nodes (as they were inserted)."""
+    the recorded tree's, then each insertion's nodes (as they were inserted); a pruned
+    node keeps its row."""
     depth: dict[int, int] = {}
     rows = []
-    batches = [(None, tree["nodes"])] + [(m["seq"], m["nodes"]) for m in mutations]
+    inserted = [m for m in mutations if m.get("op", "insert") == "insert"]  # not prunes
+    batches = [(None, tree["nodes"])] + [(m["seq"], m["nodes"]) for m in inserted]
     for added_seq, records in batches:
         for record in records:
             parent = record.get("parent_uid")

@@ -35,7 +35,15 @@ from datetime import UTC, datetime, timedelta
 from pathlib import Path
 from typing import Any
 
-from btlog.events import StatusBatch, Subscriber, TickRecord, change_rows, type_name
+from btlog.events import (
+    INSERT,
+    StatusBatch,
+    Subscriber,
+    TickRecord,
+    TreeMutation,
+    change_rows,
+    type_name,
+)
 from btlog.record.recorder import Recorder
 from btlog.status import FAILURE, IDLE, RUNNING, SUCCESS, Status
 from btlog.tree.model import Tree
@@ -164,8 +172,12 @@ class RecordingBuilder:
         tick_gap_ns: int = DEFAULT_TICK_GAP_NS,
         flush_interval: float = 1.0,
         subscribers: Iterable[Subscriber] = (),
+        explicit_ticks: bool = False,
     ) -> None:
         self.tree = tree
+        #: the source says where ticks start (``start_tick``); none is inferred
+        self.explicit_ticks = explicit_ticks
+        self._tick_end: int | None = None
         self.source = source
         self.tick_gap_ns = tick_gap_ns
         self.warnings: list[str] = []
@@ -190,7 +202,7 @@ class RecordingBuilder:
             "tree_file": "",
             "clock": "imported",
             "source": source.describe(),
-            "tick_rule": f"inferred (gap {tick_gap_ns} ns)",
+            "tick_rule": "given" if explicit_ticks else f"inferred (gap {tick_gap_ns} ns)",
             **(metadata or {}),
         }
         self.recorder = Recorder(output, tree, record, attachments, flush_interval=flush_interval)
@@ -220,6 +232,20 @@ class RecordingBuilder:
         if count:
             self._boundary = True
         return count
+
+    def start_tick(self, t_ns: int) -> int:
+        """A tick starts at ``t_ns`` (a source that knows its ticks: ``explicit_ticks``);
+        the previous one ends. Returns the new tick's number."""
+        t_ns = self._clamp(t_ns)
+        self._last_t = t_ns
+        self._next_tick(t_ns)
+        return self._tick
+
+    def end_tick(self, t_ns: int) -> None:
+        """The current tick ended at ``t_ns`` (its record is written when the next tick
+        starts or the recording closes)."""
+        self._tick_end = self._clamp(t_ns)
+        self._last_t = self._tick_end
 
     def logged(self, t_ns: int, uid: int, prev: Status, status: Status) -> None:
         """A change as a log states it, from ``prev``: when the node is not in ``prev``,
@@ -304,6 +330,33 @@ class RecordingBuilder:
         self._writes += 1
         self._last_t = t_ns
 
+    def mutate(
+        self,
+        t_ns: int,
+        op: str,
+        parent_uid: int,
+        after_uid: int | None,
+        nodes: list[dict],
+        question: str = "",
+    ) -> TreeMutation:
+        """The tree changed at ``t_ns`` (a ``TreeMutation``: ``nodes`` inserted, or
+        pruned); inserted nodes start IDLE."""
+        t_ns = self._clamp(t_ns)
+        self._settle()
+        mutation = TreeMutation(
+            self._seq, t_ns, self._tick, op, parent_uid, after_uid, list(nodes), question
+        )
+        if op == INSERT:
+            for record in nodes:
+                uid = record["uid"]
+                self._status[uid] = IDLE
+                self._rows[uid] = change_rows(uid)
+        for subscriber in self._subscribers:
+            subscriber.on_mutation(mutation)
+        self._seq += 1
+        self._last_t = t_ns
+        return mutation
+
     def flush(self) -> None:
         """Write what is buffered to the file now."""
         self._settle()
@@ -357,6 +410,8 @@ class RecordingBuilder:
 
     def _starts_tick(self, uid: int, old: Status, status: Status, t_ns: int) -> bool:
         """The module docstring's rule."""
+        if self.explicit_ticks:
+            return False
         if self._boundary:
             return True
         if uid == self._root:
@@ -384,6 +439,9 @@ class RecordingBuilder:
     def _end_tick(self) -> None:
         self._settle()
         end = self._last_transition_t
+        if self._tick_end is not None:
+            end = max(end, self._tick_end, self._tick_start)
+            self._tick_end = None
         record = TickRecord(self._tick, self._tick_start, end, self._tick_result)
         for subscriber in self._subscribers:
             subscriber.on_tick(record)

@@ -329,6 +329,15 @@ class Tree:
         self._register_inserted(subtree, parent.scope, seq)
         return index
 
+    def remove(self, node: Node) -> None:
+        """Take ``node``'s subtree out of the tree (a py_trees ``prune_subtree``)."""
+        if node.parent is None:
+            raise ValueError("cannot remove the root of a tree")
+        node.parent.children.remove(node)
+        node.parent = None
+        for removed in node.walk():
+            self.nodes.pop(removed.uid, None)
+
     def _register_inserted(self, node: Node, scope: str, seq: int | None) -> None:
         """Give an inserted node (and its subtree) its scope, a unique path and its seq."""
         if node.uid in self.nodes:

@@ -1,0 +1,322 @@
+"""Record a py_trees run: every tick of a ``py_trees.trees.BehaviourTree`` into a btlog
+recording, with the same topics, tables and questions as any other.
+
+    with btlog.sources.py_trees.record(tree, "run.mcap") as recorder:
+        for _ in range(10):
+            tree.tick()
+        print(recorder.answer("What are you doing?").text)
+
+The tree's structure becomes the recording's tree (``btlog.sources.py_trees_tree``:
+names, types, kinds). Each ``tree.tick()`` (also from ``tick_tock``) is one btlog tick,
+numbered as py_trees counts them from the first tick recorded. Every status change of
+every behaviour is recorded where py_trees makes it (``btlog.sources.py_trees_hooks``):
+INVALID is IDLE, and a change no visitor sees — a RUNNING child of a
+``Selector(memory=False)`` pre-empted by a higher priority, a child reset by its
+parent's ``stop()`` — is recorded too. Blackboard writes come from py_trees' activity
+stream (the key as py_trees names it, the writer the behaviour owning the client, the
+value as JSON when it can be, else a bounded ``repr``). ``insert_subtree``,
+``prune_subtree`` and ``replace_subtree`` on the tree are recorded as mutations (a
+replacement is a prune then an insert). Times come from the wall clock, or from
+``clock`` (seconds, e.g. a simulation's), since the recording started.
+
+The recording is made by the one ``RecordingBuilder`` all importers use, with the ticks
+given (``explicit_ticks``). ``answer`` answers a question live from the events so far,
+as post hoc ``btlog ask --at seq:N`` answers it from the file, and records the answer.
+"""
+
+from __future__ import annotations
+
+import os
+import time
+from collections.abc import Callable, Iterator, Mapping
+from contextlib import contextmanager
+from importlib import metadata as package_metadata
+from typing import Any
+
+from py_trees import common as pt_common
+
+from btlog.events import type_name
+from btlog.explain.questions import Answer, answer
+from btlog.history import LiveHistory
+from btlog.sources.builder import BuildResult, RecordingBuilder, Source
+from btlog.sources.py_trees_hooks import (
+    ActivityTap,
+    hook,
+    hooked_uid,
+    recorded_value,
+    tap_blackboard,
+    unhook,
+    untap_blackboard,
+)
+from btlog.sources.py_trees_tree import behaviours, build_subtree, tree_of
+from btlog.status import FAILURE, IDLE, RUNNING, SUCCESS, Status
+from btlog.tree.model import Node
+
+#: py_trees' statuses as btlog's: INVALID (not ticked since its last reset) is IDLE.
+STATUS: dict[Any, Status] = {
+    pt_common.Status.SUCCESS: SUCCESS,
+    pt_common.Status.FAILURE: FAILURE,
+    pt_common.Status.RUNNING: RUNNING,
+    pt_common.Status.INVALID: IDLE,
+}
+#: The blackboard scope of py_trees' one (global) blackboard.
+SCOPE = ""
+PRUNE = "prune"
+INSERT = "insert"
+
+
+def py_trees_version() -> str:
+    """The installed py_trees' version ("" when unknown)."""
+    try:
+        return package_metadata.version("py_trees")
+    except package_metadata.PackageNotFoundError:
+        return ""
+
+
+class PyTreesRecorder:
+    """Records the ticks of ``tree`` (a ``py_trees.trees.BehaviourTree``) into ``path``
+    until ``close``; see the module docstring. ``answers=False`` keeps no live history
+    (``answer`` is then refused), which makes recording cheaper."""
+
+    def __init__(
+        self,
+        tree: Any,
+        path: str | os.PathLike,
+        *,
+        metadata: Mapping[str, Any] | None = None,
+        blackboard: bool = True,
+        clock: Callable[[], float] | None = None,
+        answers: bool = True,
+        flush_interval: float = 1.0,
+    ) -> None:
+        self.py_tree = tree
+        self.tree, pairs = tree_of(tree.root)
+        self._clock = clock
+        self._start = clock() if clock is not None else time.monotonic_ns()
+        source = Source(
+            "py_trees",
+            f"py_trees tree {self.tree.name!r}",
+            details={"blackboard": blackboard, "py_trees_version": py_trees_version()},
+        )
+        record = {"clock": "wall" if clock is None else "sim", **(metadata or {})}
+        self.builder = RecordingBuilder(
+            path,
+            self.tree,
+            source,
+            metadata=record,
+            flush_interval=flush_interval,
+            explicit_ticks=True,
+        )
+        self.history: LiveHistory | None = None
+        if answers:
+            self.history = LiveHistory(self.tree)
+            self.builder.subscribe(self.history)
+        self._next_uid = self.tree.next_uid
+        self._hooked: dict[int, Any] = {}
+        self._clients: dict[Any, int | None] = {}
+        self._unknown_clients: set[Any] = set()
+        self._tap: ActivityTap | None = None
+        self._patched: list[str] = []
+        self.result: BuildResult | None = None
+        self.builder.begin_mid_run(
+            {node.uid: STATUS.get(behaviour.status, IDLE) for behaviour, node in pairs}
+        )
+        self._hook_all(pairs)
+        if blackboard:
+            self._tap = tap_blackboard(self._on_blackboard)
+        self._patch_tree()
+
+    # -- the clock -----------------------------------------------------------------------
+    def now_ns(self) -> int:
+        """The time since the recording started, in ns."""
+        if self._clock is None:
+            return time.monotonic_ns() - int(self._start)
+        return round((self._clock() - self._start) * 1e9)
+
+    # -- hooks ---------------------------------------------------------------------------
+    def _hook_all(self, pairs: list[tuple[Any, Node]]) -> None:
+        for behaviour, node in pairs:
+            hook(behaviour, node.uid, self._on_status)
+            self._hooked[node.uid] = behaviour
+        self._clients.clear()
+        self._unknown_clients.clear()
+
+    def _on_status(self, uid: int, old: Any, new: Any) -> None:
+        self.builder.transition(self.now_ns(), uid, STATUS.get(new, IDLE))
+
+    def _on_blackboard(self, item: Any) -> None:
+        writer = self._writer_of(item.client_id)
+        if item.activity_type == "UNSET":
+            self.builder.write(self.now_ns(), SCOPE, item.key, None, writer, "unset")
+            return
+        value = item.current_value
+        label = type_name(value)
+        self.builder.write(self.now_ns(), SCOPE, item.key, recorded_value(value), writer, label)
+
+    def _writer_of(self, client_id: Any) -> int | None:
+        """The uid of the behaviour whose blackboard client ``client_id`` is (None for a
+        client outside the tree)."""
+        uid = self._clients.get(client_id)
+        if uid is not None or client_id in self._unknown_clients:
+            return uid
+        for known, behaviour in self._hooked.items():
+            for client in getattr(behaviour, "blackboards", ()):
+                self._clients[client.unique_identifier] = known
+        uid = self._clients.get(client_id)
+        if uid is None:
+            self._unknown_clients.add(client_id)
+        return uid
+
+    def _patch_tree(self) -> None:
+        """Route the tree's ``tick`` and subtree changes through the recorder."""
+        tree = self.py_tree
+        originals = {
+            "tick": tree.tick,
+            "insert_subtree": tree.insert_subtree,
+            "prune_subtree": tree.prune_subtree,
+            "replace_subtree": tree.replace_subtree,
+        }
+
+        def tick(*args: Any, **kwargs: Any) -> None:
+            self.builder.start_tick(self.now_ns())
+            try:
+                originals["tick"](*args, **kwargs)
+            finally:
+                self.builder.end_tick(self.now_ns())
+
+        def insert_subtree(child: Any, unique_id: Any, index: int) -> bool:
+            done = bool(originals["insert_subtree"](child, unique_id, index))
+            if done:
+                self._inserted(child)
+            return done
+
+        def prune_subtree(unique_id: Any) -> bool:
+            behaviour = self._find(unique_id)
+            done = bool(originals["prune_subtree"](unique_id))
+            if done and behaviour is not None:
+                self._pruned(behaviour)
+            return done
+
+        def replace_subtree(unique_id: Any, subtree: Any) -> bool:
+            behaviour = self._find(unique_id)
+            done = bool(originals["replace_subtree"](unique_id, subtree))
+            if done and behaviour is not None:
+                self._pruned(behaviour)
+                self._inserted(subtree)
+            return done
+
+        for name, patched in (
+            ("tick", tick),
+            ("insert_subtree", insert_subtree),
+            ("prune_subtree", prune_subtree),
+            ("replace_subtree", replace_subtree),
+        ):
+            setattr(tree, name, patched)
+            self._patched.append(name)
+
+    def _find(self, unique_id: Any) -> Any:
+        return next((b for b in self._hooked.values() if b.id == unique_id), None)
+
+    # -- mutations -----------------------------------------------------------------------
+    def _inserted(self, behaviour: Any) -> None:
+        """``behaviour``'s subtree was put in the tree: a mutation, then its statuses."""
+        parent_uid = hooked_uid(behaviour.parent)
+        if parent_uid is None:
+            return
+        parent = self.tree.node(parent_uid)
+        index = behaviour.parent.children.index(behaviour)
+        after_behaviour = behaviour.parent.children[index - 1] if index > 0 else None
+        after_uid = None if after_behaviour is None else hooked_uid(after_behaviour)
+        after = None if after_uid is None else self.tree.node(after_uid)
+        root, pairs = build_subtree(behaviour, self._next_uid)
+        self._next_uid += len(pairs)
+        self.tree.insert_after(parent, after, root, self.builder.seq)
+        records = [node.describe() for node in root.walk()]
+        self.builder.mutate(self.now_ns(), INSERT, parent_uid, after_uid, records)
+        for child, node in pairs:
+            status = STATUS.get(child.status, IDLE)
+            if status is not IDLE:
+                self.builder.transition(self.now_ns(), node.uid, status)
+        self._hook_all(pairs)
+
+    def _pruned(self, behaviour: Any) -> None:
+        """``behaviour``'s subtree was taken out of the tree: a mutation naming it."""
+        uid = hooked_uid(behaviour)
+        if uid is None:
+            return
+        node = self.tree.node(uid)
+        parent = node.parent
+        records = [n.describe() for n in node.walk()]
+        self.builder.mutate(
+            self.now_ns(), PRUNE, parent.uid if parent is not None else uid, None, records
+        )
+        self.tree.remove(node)
+        for removed in behaviours(behaviour):
+            removed_uid = hooked_uid(removed)
+            unhook(removed)
+            self._hooked.pop(removed_uid, None)  # type: ignore[arg-type]
+        self._clients.clear()
+        self._unknown_clients.clear()
+
+    # -- questions -----------------------------------------------------------------------
+    def answer(self, question: str) -> Answer:
+        """Answer ``question`` about the run so far (as post hoc at its last event), and
+        record the answer on ``/btlog/answers``."""
+        if self.history is None:
+            raise RuntimeError("this recorder keeps no live history (answers=False)")
+        history = self.history
+        result = answer(history.tree, history.state, question, history)
+        state = history.state
+        self.builder.recorder.on_answer(
+            self.builder.seq, state.t_ns, self.builder.tick, question, result.intent, result.text
+        )
+        return result
+
+    # -- the end -------------------------------------------------------------------------
+    @property
+    def ticks(self) -> int:
+        """The ticks recorded so far."""
+        return self.builder.tick
+
+    def close(self) -> BuildResult:
+        """Stop recording: the tree and blackboard are as they were, the file finished."""
+        if self.result is not None:
+            return self.result
+        for name in self._patched:
+            self.py_tree.__dict__.pop(name, None)
+        self._patched.clear()
+        if self._tap is not None:
+            untap_blackboard(self._tap)
+            self._tap = None
+        for behaviour in self._hooked.values():
+            unhook(behaviour)
+        self._hooked.clear()
+        self.result = self.builder.close()
+        return self.result
+
+    def __enter__(self) -> PyTreesRecorder:
+        return self
+
+    def __exit__(self, *exc_info: object) -> None:
+        self.close()
+
+
+@contextmanager
+def record(
+    tree: Any,
+    path: str | os.PathLike,
+    *,
+    metadata: Mapping[str, Any] | None = None,
+    blackboard: bool = True,
+    clock: Callable[[], float] | None = None,
+    answers: bool = True,
+) -> Iterator[PyTreesRecorder]:
+    """Record every ``tree.tick()`` inside the block into ``path`` (see the module
+    docstring); yields the ``PyTreesRecorder``."""
+    recorder = PyTreesRecorder(
+        tree, path, metadata=metadata, blackboard=blackboard, clock=clock, answers=answers
+    )
+    try:
+        yield recorder
+    finally:
+        recorder.close()
