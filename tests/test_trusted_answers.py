@@ -21,6 +21,7 @@ from btlog.executor.actions import Condition, InputPort, OutputPort, StatefulAct
 from btlog.executor.engine import Executor
 from btlog.explain.questions import answer
 from btlog.explain.story import story
+from btlog.explain.words import is_named
 from btlog.history import LiveHistory
 from btlog.record.recorder import Recorder
 from btlog.replay.database import open_runs
@@ -552,3 +553,68 @@ def test_same_named_leaves_shouted_names_and_a_lone_action_as_the_goal(tmp_path:
     ):
         said = btlog("ask", str(tmp_path / "lone.mcap"), "--at", "0.2s", question)
         assert said.stdout.strip() == expected
+
+
+RESTATED = """<root BTCPP_format="4" main_tree_to_execute="MainTree">
+  <BehaviorTree ID="MainTree">
+    <Sequence name="root_sequence">
+      <Fallback name="get to kitchen">
+        <Action ID="GoTo" name="go to the kitchen"/>
+        <Action ID="TakeStairs" name="take the stairs"/>
+      </Fallback>
+      <SubTree ID="Grasping" name="MainTree"/>
+      <Sequence name="RootSequence">
+        <Action ID="Bring" name="bring coffee"/>
+      </Sequence>
+    </Sequence>
+  </BehaviorTree>
+  <BehaviorTree ID="Grasping">
+    <Sequence name="main_sequence"><Action ID="Grasp" name="grasp cup"/></Sequence>
+  </BehaviorTree>
+</root>
+"""
+
+
+def test_names_that_restate_a_type_or_a_tree_id_are_no_names(tmp_path: Path) -> None:
+    """A Sequence named root_sequence, RootSequence or main_sequence, a SubTree and a tree
+    named MainTree say nothing of what the robot does: no answer uses them as a purpose,
+    a subgoal or the goal; the answers climb to named nodes, and the goal, with nothing
+    above naming it, is what the root holds."""
+    tree = tmp_path / "restated.xml"
+    tree.write_text(RESTATED, encoding="utf-8")
+    outcomes = tmp_path / "outcomes.yaml"
+    outcomes.write_text(
+        'default: {status: SUCCESS, duration: 0.5}\nnodes: {"go to the kitchen": FAILURE}\n',
+        encoding="utf-8",
+    )
+    out = tmp_path / "restated.mcap"
+    ran = btlog("run", str(tree), "--outcomes", str(outcomes), "-o", str(out), "--quiet")
+    assert ran.returncode == 0, ran.stderr
+    goal = "get to kitchen, grasp cup and bring coffee"
+    for at, question, expected in (
+        ("0.7s", "What is your goal?", f"My goal is to {goal}."),
+        ("1.2s", "Why are you doing this?", "I grasp cup in order to " + goal + "."),
+        ("1.2s", "What is your subgoal?", "My subgoal is to grasp cup."),
+        ("1.7s", "What is your subgoal?", "My subgoal is to bring coffee."),
+        ("1.7s", "Why are you doing this?", "I bring coffee in order to " + goal + "."),
+        (
+            "1.2s",
+            "How do you achieve your goal?",
+            f'To achieve the goal "{goal}", I need to do 3 steps. 1. get to kitchen. '
+            "2. grasp cup. 3. bring coffee.",
+        ),
+    ):
+        said = btlog("ask", str(out), "--at", at, question)
+        assert said.stdout.strip() == expected, (at, question)
+    told = _story(out)
+    assert told[0].startswith(f"Goal: {goal}. Outcome: SUCCESS")
+    subgoals = told[told.index("Subgoals:") + 1 :]
+    assert [line.split(":")[0] for line in subgoals] == [
+        "  get to kitchen",
+        "  grasp cup",
+        "  bring coffee",
+    ]
+    loaded = load_tree_text(RESTATED)
+    unnamed = {n.name for n in loaded if not is_named(n)}
+    assert {"root_sequence", "RootSequence", "main_sequence", "MainTree"} <= unnamed
+    assert is_named(next(n for n in loaded if n.name == "get to kitchen"))

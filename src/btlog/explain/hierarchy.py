@@ -5,8 +5,9 @@ the main tree's root, a subgoal is a SubTree, steps are the named, non-decorator
 below a (sub)goal whose names differ from it, and actions are the execution nodes.
 
 Real trees are seldom framed so: Nav2's default trees have no SubTree at all. One rule
-covers both (docs/design.md, "Subgoals"): a node's **subgoal** is its nearest SubTree
-ancestor, as in the paper; where no SubTree is above it, the **goal's step** that holds
+covers both (docs/design.md, "Subgoals"): a node's **subgoal** is its nearest named
+SubTree ancestor, as in the paper (a SubTree named "MainTree" restates a tree's ID and is
+no name, ``words.is_named``); where no SubTree is above it, the **goal's step** that holds
 it — the topmost named, non-decorator node between it and the root (Algorithm 5 run from
 the root), the node itself when it is such a step. In Nav2's NavigateToPose tree the
 goal's steps are "navigate with replanning" and "recovery fallback", so clearing the
@@ -101,7 +102,7 @@ def subgoal_node(node: Node) -> Node | None:
     and for nodes outside every step."""
     chain = []
     for ancestor in node.ancestors():
-        if ancestor.kind == SUBTREE:
+        if ancestor.kind == SUBTREE and is_named(ancestor):
             return ancestor
         chain.append(ancestor)
     if not chain:
@@ -125,7 +126,7 @@ def subgoals(tree: Tree) -> list[Node]:
     hold execution nodes outside every SubTree."""
     found: dict[int, Node] = {}
     for node in tree:
-        if node.kind == SUBTREE:
+        if node.kind == SUBTREE and is_named(node):
             found[node.uid] = node
         elif node.is_execution:
             step = subgoal_node(node)

@@ -42,7 +42,7 @@ from btlog.explain.causes import (
 )
 from btlog.explain.handlers import FELL_BACK, PROPAGATED, Reaction, handler_of
 from btlog.explain.hierarchy import subgoals
-from btlog.explain.words import goal_words, seconds, words
+from btlog.explain.words import goal_words, is_named, seconds, words
 from btlog.history import ANY_STATUS, COMPLETIONS, History, Transition, activation_end
 from btlog.state import State
 from btlog.status import FAILURE, IDLE, RUNNING, SUCCESS
@@ -273,7 +273,7 @@ def _subgoal(node: Node, lo: int, now: int, history: History) -> Subgoal:
     last_start = (
         None if done is None else history.last([node.uid], ANY_STATUS, lo, done.seq, starts=True)
     )
-    depth = sum(1 for a in node.ancestors() if a.kind == SUBTREE)
+    depth = sum(1 for a in node.ancestors() if a.kind == SUBTREE and is_named(a))
     return Subgoal(
         words(node),
         depth,

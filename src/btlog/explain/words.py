@@ -36,9 +36,13 @@ recorded):
 - in the slots of a sentence that say what the robot does, a condition is the check it
   is (``act``: "check battery OK"; the paper's "check if grasped" as it is);
 - a node is **named** when it has such words of its own: a usable description, or a
-  name that is neither empty nor its type. Only named nodes (and SubTrees) are
-  purposes, subgoals, steps or goals; an unnamed control node is never spoken of — the
-  answer climbs to the nearest named ancestor instead.
+  name that is neither empty nor its type, nor merely restates a type or a tree's ID
+  (``restates_structure``: a Sequence named "root_sequence", "RootSequence" or
+  "main_sequence", a SubTree or tree named "MainTree" are no names). Only named nodes
+  are purposes, subgoals, steps or goals; an unnamed control node (or SubTree) is never
+  spoken of — the answer climbs to the nearest named ancestor instead. The goal is the
+  root when it is named, else the main tree's ID when that is a name, else the steps
+  the root holds ("get to kitchen, grasp cup and bring coffee").
 """
 
 from __future__ import annotations
@@ -62,6 +66,18 @@ _NOUN_PHRASE_STARTS = frozenset(
     {"a", "an", "the", "this", "that", "these", "those", "it", "its", "here", "there"}
     | {"i", "my", "we", "our", "you", "your"}
 )
+
+
+#: Words that say only where a node sits or what kind of node it is: a control's,
+#: decorator's, SubTree's or tree's name made of these (and its own type's words and
+#: numbers) alone restates a type or a tree's ID, and is no name.
+_STRUCTURE_WORDS = frozenset(
+    {"root", "main", "top", "level", "tree", "sub", "subtree", "behavior", "behaviour"}
+    | {"bt", "node", "control", "decorator", "sequence", "fallback", "selector"}
+    | {"parallel", "reactive"}
+)
+#: At most this many steps are named when the goal is said as the root's steps.
+MAX_GOAL_STEPS = 4
 
 
 def split_identifier(text: str) -> list[str]:
@@ -149,6 +165,16 @@ def humanize(text: str, own_type: str = "") -> str:
     return " ".join(words) if words else text
 
 
+def restates_structure(name: str, own_type: str = "") -> bool:
+    """True when ``name`` says nothing but where a node sits or what kind it is: every
+    word of it is a structure word ("root", "main", "tree", "sequence", …), a word of
+    ``own_type`` or a number (``root_sequence``, ``RootSequence``, ``main_sequence``,
+    ``MainTree``, ``Fallback2``)."""
+    found = [w.lower() for part in re.split(r"\s+", name) for w in split_identifier(part)]
+    own = {w.lower() for w in split_identifier(own_type)} if own_type else set()
+    return bool(found) and all(w in _STRUCTURE_WORDS or w in own or w.isdigit() for w in found)
+
+
 def own_phrase(node: Node) -> str | None:
     """The node's description as an answer speaks it (``phrase``), if it has one."""
     described = node.attributes.get(DESCRIPTION, "")
@@ -157,11 +183,14 @@ def own_phrase(node: Node) -> str | None:
 
 def is_named(node: Node) -> bool:
     """True when the node has words of its own (see the module docstring): a usable
-    description, a name that is neither empty nor its type, or it is a SubTree (whose
-    name is the subtree's)."""
+    description, or a name that is neither empty nor its type and, on a control,
+    decorator or SubTree (whose name is the subtree's), does not merely restate a type or
+    a tree's ID."""
     if own_phrase(node):
         return True
-    return node.kind == SUBTREE or (bool(node.name) and node.name != node.type)
+    if not node.name or (node.name == node.type and node.kind != SUBTREE):
+        return False
+    return node.is_execution or not restates_structure(node.name, node.type)
 
 
 def words(node: Node) -> str:
@@ -207,11 +236,34 @@ def first_named(node: Node) -> Node:
 def goal_words(tree: Tree) -> str:
     """The goal as an answer speaks of it: the root when it is named or an execution
     node (whose type is what it does), else the main tree's own name (its
-    ``BehaviorTree`` ID)."""
+    ``BehaviorTree`` ID) when it is a name, else what the root holds: its first named
+    nodes (or actions) below, joined ("get to kitchen, grasp cup and bring coffee"; past
+    ``MAX_GOAL_STEPS``, "… and N more")."""
     root = tree.root
-    if is_named(root) or root.is_execution or not tree.name:
+    if is_named(root) or root.is_execution:
         return words(root)
-    return humanize(tree.name)
+    if tree.name and not restates_structure(tree.name):
+        return humanize(tree.name)
+    held = [words(n) for n in _tops(root)]
+    if not held:
+        return words(root)
+    if len(held) > MAX_GOAL_STEPS:
+        held = [*held[: MAX_GOAL_STEPS - 1], f"{len(held) - MAX_GOAL_STEPS + 1} more"]
+    return held[0] if len(held) == 1 else ", ".join(held[:-1]) + " and " + held[-1]
+
+
+def _tops(node: Node) -> list[Node]:
+    """Depth first below ``node``, the first nodes that are named (not decorators) or
+    execution nodes; their branches are not explored further."""
+    found: list[Node] = []
+    stack = list(reversed(node.children))
+    while stack:
+        inner = stack.pop()
+        if inner.is_execution or (is_named(inner) and inner.kind != DECORATOR):
+            found.append(inner)
+        else:
+            stack.extend(reversed(inner.children))
+    return found
 
 
 def seconds(t_ns: int) -> str:
