@@ -72,11 +72,18 @@ class LiveQuestion:
     def due(self, executor: Executor, next_tick_ns: int, started_at_ns: int | None) -> bool:
         """True when the state now (before the next tick) is the state at WHEN; moments
         counted from the end are never due while the run goes on."""
+        return self.due_after(executor.runtime.tick, executor.seq, next_tick_ns, started_at_ns)
+
+    def due_after(
+        self, ticks: int, events: int, next_tick_ns: int, started_at_ns: int | None
+    ) -> bool:
+        """``due`` for any source: ``ticks`` ticks and ``events`` events are over, the
+        next tick starts at ``next_tick_ns``."""
         kind, value = self.moment.kind, self.moment.value
         if kind == TICK:
-            return executor.runtime.tick >= value
+            return ticks >= value
         if kind == SEQ:
-            return executor.seq > value
+            return events > value
         if kind == TIME:
             return next_tick_ns > value
         if kind == WALL and started_at_ns is not None:
@@ -87,7 +94,7 @@ class LiveQuestion:
         return False
 
 
-def _time_of(moment: Moment, state: State, started_at_ns: int | None, tick_end_ns: int) -> int:
+def moment_time(moment: Moment, state: State, started_at_ns: int | None, tick_end_ns: int) -> int:
     """The moment's time since the start, as post hoc resolves it: its own time, for
     ``tick:N`` the end of that tick (``tick_end_ns``: the live run's last tick is N), for
     ``seq:N`` the time of the last event applied."""
@@ -100,7 +107,7 @@ def _time_of(moment: Moment, state: State, started_at_ns: int | None, tick_end_n
     return state.t_ns
 
 
-class _Extent(Subscriber):
+class EventExtent(Subscriber):
     """The times and ticks of every event and the end of the last tick: what resolving
     a moment against the finished run needs."""
 
@@ -146,6 +153,20 @@ class _Extent(Subscriber):
         return self.tick_records[-1][2] if self.tick_records else 0
 
 
+def at_the_end(
+    question: LiveQuestion, extent: EventExtent, history: LiveHistory, started_at: str | None
+) -> tuple[Tree, State, int]:
+    """The tree, state and time of ``question``'s moment in a finished run, resolved
+    against its events (``extent``, ``history``) as post hoc; ``MomentError`` for a moment
+    outside the run."""
+    run = RunExtent.from_events(extent.times, extent.ticks, extent.tick_records, started_at)
+    resolved = resolve_moment(question.moment, run)
+    if resolved.count == len(extent.times):
+        return history.tree, history.state, resolved.t_ns
+    tree, state = history.state_after(resolved.count)
+    return tree, state, resolved.t_ns
+
+
 class LiveQuestions(Subscriber):
     """Answers a run's live questions from a live state projection (see the module)."""
 
@@ -165,7 +186,7 @@ class LiveQuestions(Subscriber):
         self.projection = LiveHistory(executor.tree)  # the state, and the past
         self.answered: list[tuple[LiveQuestion, Answer, int]] = []
         self.refused: list[str] = []
-        self.extent = _Extent()
+        self.extent = EventExtent()
         self._started_ns = parse_started_at(started_at)[0]
         executor.subscribe(self.projection)
         executor.subscribe(self.extent)
@@ -178,28 +199,23 @@ class LiveQuestions(Subscriber):
         for question in [q for q in self.pending if q.due(executor, next_ns, self._started_ns)]:
             self.pending.remove(question)
             state = self.projection.state
-            at_ns = _time_of(question.moment, state, self._started_ns, self.extent.end_ns)
+            at_ns = moment_time(question.moment, state, self._started_ns, self.extent.end_ns)
             self._answer(question, self.projection.tree, state, at_ns, running=True)
 
     def finish(self) -> None:
         """Answer what is left now that the run is over (call after its teardown):
         each moment resolved against the run's events as post hoc; moments outside the
         run are refused (``refused`` holds the one-line reasons)."""
-        extent = RunExtent.from_events(
-            self.extent.times, self.extent.ticks, self.extent.tick_records, self.started_at
-        )
         for question in list(self.pending):
             self.pending.remove(question)
             try:
-                resolved = resolve_moment(question.moment, extent)
+                tree, state, at_ns = at_the_end(
+                    question, self.extent, self.projection, self.started_at
+                )
             except MomentError as error:
                 self.refused.append(f"--ask {question.when}={question.question!r}: {error}")
                 continue
-            if resolved.count == self.executor.seq:
-                tree, state = self.projection.tree, self.projection.state
-            else:
-                tree, state = self.projection.state_after(resolved.count)
-            self._answer(question, tree, state, resolved.t_ns, running=False)
+            self._answer(question, tree, state, at_ns, running=False)
 
     def _answer(
         self, question: LiveQuestion, tree: Tree, state: State, at_ns: int, running: bool

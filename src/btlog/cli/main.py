@@ -259,16 +259,17 @@ def build_parser() -> argparse.ArgumentParser:
     add_limit_flags(validate)
     validate.add_argument("--json", action="store_true", help="JSON output")
 
-    from btlog.cli import cache, fleet, sources
+    from btlog.cli import cache, fleet, record_py, sources
 
     sources.add_parsers(commands)
+    record_py.add_parsers(commands)
     cache.add_parsers(commands)
     fleet.add_parsers(commands)
     return parser
 
 
 def _handlers() -> dict[str, Callable[[argparse.Namespace], int]]:
-    from btlog.cli import cache, checks, commands, fleet, replay, sources, view
+    from btlog.cli import cache, checks, commands, fleet, record_py, replay, sources, view
 
     return {
         "run": commands.run,
@@ -285,6 +286,7 @@ def _handlers() -> dict[str, Callable[[argparse.Namespace], int]]:
         "import": sources.import_,
         "export": sources.export,
         "attach": sources.attach,
+        "record-py": record_py.record_py,
         "cache": cache.cache_command,
         "view": view.view,
         "fleet": fleet.fleet,

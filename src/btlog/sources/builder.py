@@ -178,6 +178,8 @@ class RecordingBuilder:
         #: the source says where ticks start (``start_tick``); none is inferred
         self.explicit_ticks = explicit_ticks
         self._tick_end: int | None = None
+        #: the current tick's record is written (``end_tick``)
+        self._ended = False
         self.source = source
         self.tick_gap_ns = tick_gap_ns
         self.warnings: list[str] = []
@@ -242,10 +244,13 @@ class RecordingBuilder:
         return self._tick
 
     def end_tick(self, t_ns: int) -> None:
-        """The current tick ended at ``t_ns`` (its record is written when the next tick
-        starts or the recording closes)."""
+        """The current tick ended at ``t_ns``: its record is written now (events before
+        the next tick still belong to it)."""
         self._tick_end = self._clamp(t_ns)
         self._last_t = self._tick_end
+        if self._tick > 0 and not self._ended:
+            self._end_tick()
+            self._ended = True
 
     def logged(self, t_ns: int, uid: int, prev: Status, status: Status) -> None:
         """A change as a log states it, from ``prev``: when the node is not in ``prev``,
@@ -364,7 +369,7 @@ class RecordingBuilder:
 
     def close(self) -> BuildResult:
         """Finish the file (the last tick's record included)."""
-        if self._tick > 0:
+        if self._tick > 0 and not self._ended:
             self._end_tick()
         self._settle()
         if self._clamped:
@@ -428,8 +433,9 @@ class RecordingBuilder:
 
     def _next_tick(self, t_ns: int) -> None:
         self._settle()
-        if self._tick > 0:
+        if self._tick > 0 and not self._ended:
             self._end_tick()
+        self._ended = False
         self._tick += 1
         self._tick_start = t_ns
         self._boundary = False

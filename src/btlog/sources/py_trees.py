@@ -28,14 +28,14 @@ from __future__ import annotations
 
 import os
 import time
-from collections.abc import Callable, Iterator, Mapping
+from collections.abc import Callable, Iterable, Iterator, Mapping
 from contextlib import contextmanager
 from importlib import metadata as package_metadata
 from typing import Any
 
 from py_trees import common as pt_common
 
-from btlog.events import type_name
+from btlog.events import Subscriber, type_name
 from btlog.explain.questions import Answer, answer
 from btlog.history import LiveHistory
 from btlog.sources.builder import BuildResult, RecordingBuilder, Source
@@ -49,8 +49,9 @@ from btlog.sources.py_trees_hooks import (
     untap_blackboard,
 )
 from btlog.sources.py_trees_tree import behaviours, build_subtree, tree_of
+from btlog.state import State
 from btlog.status import FAILURE, IDLE, RUNNING, SUCCESS, Status
-from btlog.tree.model import Node
+from btlog.tree.model import Node, Tree
 
 #: py_trees' statuses as btlog's: INVALID (not ticked since its last reset) is IDLE.
 STATUS: dict[Any, Status] = {
@@ -88,6 +89,7 @@ class PyTreesRecorder:
         clock: Callable[[], float] | None = None,
         answers: bool = True,
         flush_interval: float = 1.0,
+        subscribers: Iterable[Subscriber] = (),
     ) -> None:
         self.py_tree = tree
         self.tree, pairs = tree_of(tree.root)
@@ -105,6 +107,7 @@ class PyTreesRecorder:
             source,
             metadata=record,
             flush_interval=flush_interval,
+            subscribers=subscribers,
             explicit_ticks=True,
         )
         self.history: LiveHistory | None = None
@@ -259,18 +262,27 @@ class PyTreesRecorder:
         self._unknown_clients.clear()
 
     # -- questions -----------------------------------------------------------------------
-    def answer(self, question: str) -> Answer:
-        """Answer ``question`` about the run so far (as post hoc at its last event), and
-        record the answer on ``/btlog/answers``."""
-        if self.history is None:
-            raise RuntimeError("this recorder keeps no live history (answers=False)")
-        history = self.history
-        result = answer(history.tree, history.state, question, history)
-        state = history.state
+    def answer(self, question: str, at_ns: int | None = None) -> Answer:
+        """Answer ``question`` about the run so far (as post hoc at its last event, or at
+        ``at_ns`` when that is later), and record the answer on ``/btlog/answers``."""
+        history = self._live()
+        return self.answer_about(question, history.tree, history.state, at_ns)
+
+    def answer_about(
+        self, question: str, tree: Tree, state: State, at_ns: int | None = None
+    ) -> Answer:
+        """Answer ``question`` about an earlier ``state`` of the run (of ``tree``, from
+        the live history's ``state_after``), and record the answer."""
+        result = answer(tree, state, question, self._live(), at_ns)
         self.builder.recorder.on_answer(
-            self.builder.seq, state.t_ns, self.builder.tick, question, result.intent, result.text
+            state.seq, state.t_ns, state.tick, question, result.intent, result.text
         )
         return result
+
+    def _live(self) -> LiveHistory:
+        if self.history is None:
+            raise RuntimeError("this recorder keeps no live history (answers=False)")
+        return self.history
 
     # -- the end -------------------------------------------------------------------------
     @property

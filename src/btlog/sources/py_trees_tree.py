@@ -1,17 +1,19 @@
 """A py_trees tree as a btlog tree: each behaviour a node the explanation algorithms read.
 
-A behaviour's ``name`` is the node's name. Its type is the py_trees class name, except for
-the composites and decorators that have a BehaviorTree.CPP counterpart with the same
-semantics: those get that counterpart's type (``SEMANTICS``), so the algorithms — which
-know BT.CPP's control flow by type (``btlog.explain.flow``, ``btlog.explain.handlers``)
-— read them as they are, and the py_trees class is kept in the attribute ``py_trees``.
-Parameters become the ports the BT.CPP type has (``num_attempts`` of a Retry,
-``num_cycles`` of a Repeat, ``success_count`` of a Parallel, ``msec`` of a Timeout).
-A composite or decorator without a counterpart keeps its class as its type, and its
-parent-of-one semantics is "the child's result is mine" (``btlog.explain.flow``'s rule for
-decorators without a rule). Leaves are actions, except the blackboard checks of
-``py_trees.behaviours`` (``CONDITION_CLASSES``) and any behaviour with a ``btlog_kind``
-attribute of ``"condition"``.
+A behaviour's ``name`` is the node's name (on one line: a name broken over lines for
+py_trees' dot graphs is joined with spaces, the original kept as ``py_trees_name``).
+Its type is the py_trees class name, except for the composites and decorators that have
+a BehaviorTree.CPP counterpart with the same semantics: those get that counterpart's
+type (``SEMANTICS``), so the algorithms, which know BT.CPP's control flow by type
+(``btlog.explain.flow``, ``btlog.explain.handlers``), read them as they are; the
+py_trees class is kept in the attribute ``py_trees``. Parameters become the ports the
+BT.CPP type has (``num_attempts`` of a Retry, ``num_cycles`` of a Repeat,
+``success_count`` of a Parallel, ``msec`` of a Timeout). A composite or decorator
+without a counterpart keeps its class as its type; for a decorator the algorithms then
+take "the child's result is mine" (``btlog.explain.flow``'s rule for decorators without
+one). Leaves are actions, except the blackboard checks of ``py_trees.behaviours``
+(``CONDITION_CLASSES``) and any behaviour with a ``btlog_kind`` attribute of
+``"condition"``.
 
 Uids are given in depth-first pre-order from 1, as btlog's loader gives them.
 """
@@ -111,7 +113,10 @@ def node_of(behaviour: Any, uid: int) -> Node:
         if hasattr(behaviour, key):
             value = getattr(behaviour, key)
             attributes[key] = type(value).__name__ if key == "policy" else str(value)
-    name = str(behaviour.name)
+    given = str(behaviour.name)
+    name = " ".join(given.split())  # one line: py_trees' dot graphs break names
+    if name != given:
+        attributes["py_trees_name"] = given
     return Node(
         uid=uid,
         type=type_id,
