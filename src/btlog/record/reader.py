@@ -1,9 +1,10 @@
 """The reader: a recording back as events, ticks, the tree and the run's metadata.
 
-The file is walked front to back by ``btlog.record.walk`` (the one record walker): a
-file cut short (the recorder was killed) is read up to its last whole record — with the
-recorder's flushing, a gap-free prefix of the run's events — and a damaged chunk is
-skipped; warnings say both.
+The file is walked by ``btlog.record.walk`` (the one record walker): a file cut short
+(the recorder was killed) is read up to its last whole record — with the recorder's
+flushing, a gap-free prefix of the run's events — and a damaged chunk is skipped;
+warnings say both. What is read does not depend on the order of the chunks in the file:
+events, ticks and answers are put in seq (tick) order.
 
 Bad input (a missing, empty or non-MCAP file, a file that is not a btlog recording, a
 schema version this btlog does not read) raises ``RecordingError`` with one line naming
@@ -15,6 +16,7 @@ from __future__ import annotations
 import os
 from collections.abc import Iterator
 from dataclasses import dataclass, field
+from itertools import pairwise
 from operator import attrgetter
 from pathlib import Path
 from typing import Any
@@ -31,7 +33,6 @@ from btlog.record.walk import (
     Walk,
     mapped,
     open_mcap,
-    parse,
     records,
     top_records,
 )
@@ -44,7 +45,7 @@ def raw_records(path: str | os.PathLike, walk: Walk) -> Iterator[Any]:
     both noted in ``walk``). Used by the reader and by ``recover``."""
     with mapped(path) as (data, size):
         for opcode, buffer, body, end in records(data, size, walk):
-            record = parse(opcode, buffer, body, end)
+            record = walk.parse(opcode, buffer, body, end)
             if record is not None:
                 yield record
 
@@ -126,10 +127,11 @@ def read_metadata(path: str | os.PathLike) -> dict[str, Any]:
     """The run's ``btlog.run`` metadata (JSON values decoded), without reading events."""
     name = os.fspath(path)
     record = None
+    walk = Walk(name)
     with mapped(name) as (data, size):
-        for opcode, body, end in top_records(data, size, Walk(name)):
+        for opcode, body, end in top_records(data, size, walk):
             if opcode == Opcode.METADATA:
-                found = parse(opcode, data, body, end)
+                found = walk.parse(opcode, data, body, end)
                 if found.name == fmt.METADATA_NAME:
                     record = found
                     break
@@ -238,6 +240,10 @@ def _assemble(name: str, contents: _Contents, walk: Walk) -> Recording:
         events.sort(key=attrgetter("seq"))
         if not _gap_free(events):
             warnings.append(f"{name}: the events' seqs are not 0, 1, 2, … without gaps")
+    ticks = contents.ticks
+    if any(a.tick > b.tick for a, b in pairwise(ticks)):
+        ticks.sort(key=attrgetter("tick", "teardown"))
+    answers = sorted(contents.answers, key=seq_of)
     if walk.truncated:
         last = f"up to seq {events[-1].seq}" if events else "(none)"
         warnings.insert(0, f"{name}: truncated recording; read {len(events)} events {last}")
@@ -246,8 +252,8 @@ def _assemble(name: str, contents: _Contents, walk: Walk) -> Recording:
         metadata,
         tree_of(name, contents.tree),
         events,
-        contents.ticks,
-        contents.answers,
+        ticks,
+        answers,
         contents.attachments,
         walk.truncated,
         warnings,
@@ -267,6 +273,12 @@ def tree_of(name: str, message: dict | None) -> Tree:
         raise RecordingError(
             f"{name}: the {fmt.TREE_TOPIC} message is not a tree: {type(error).__name__}: {error}"
         ) from None
+
+
+def seq_of(message: Any) -> int:
+    """The seq of an answer or mutation message, for ordering (-1 when it has none)."""
+    seq = message.get("seq") if isinstance(message, dict) else None
+    return seq if isinstance(seq, int) else -1
 
 
 def _gap_free(events: list) -> bool:

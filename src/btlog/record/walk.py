@@ -13,9 +13,16 @@ record's body is ``buffer[body:end]``. It is the only place btlog frames records
   has more records after it) is resynchronised: the walk searches forward for the next
   chunk whose layout and CRC check out, and says which bytes it skipped.
 
+Reading does not depend on the order of the chunks in the file: a finished file's
+summary (its CRC checked) gives the schemas and channels first, so a message is never
+lost for coming before its channel's record; without a sound summary (a cut file), a
+message whose channel has not been seen yet is held until its channel record comes.
+Readers order what they read by seq, not by file position.
+
 ``Walk`` collects what was noticed (``truncated``, ``warnings``, ``dropped``).
-``parse`` turns a record into the ``mcap`` package's record object when a reader wants
-one; the bulk ingestion reads message bodies straight from the buffer instead.
+``Walk.parse`` turns a record into the ``mcap`` package's record object when a reader
+wants one (a damaged record is a ``RecordingError`` naming file and byte offset); the
+bulk ingestion reads message bodies straight from the buffer instead.
 """
 
 from __future__ import annotations
@@ -33,6 +40,7 @@ from typing import IO, Any
 import lz4.frame
 import zstandard
 from mcap.data_stream import ReadDataStream
+from mcap.exceptions import McapError
 from mcap.opcode import Opcode
 from mcap.records import Attachment, Channel, DataEnd, Header, Message, Metadata, Schema
 
@@ -44,6 +52,9 @@ MESSAGE_HEAD = 2 + 4 + 8 + 8
 _CHUNK_HEAD = struct.Struct("<QQQI")  # start, end, uncompressed size, uncompressed CRC
 _U32 = struct.Struct("<I")
 _U64 = struct.Struct("<Q")
+_U16 = struct.Struct("<H")
+#: A footer record: opcode, length (20), summary start, summary offset start, summary CRC.
+_FOOTER = struct.Struct("<BQQQI")
 _KNOWN = frozenset(int(opcode) for opcode in Opcode)
 #: The records ``parse`` builds (the others, indexes and summary records, are skipped).
 _PARSED: dict[int, Any] = {
@@ -82,6 +93,8 @@ class Walk:
     truncated: bool = False
     warnings: list[str] = field(default_factory=list)
     dropped: list[Dropped] = field(default_factory=list)
+    #: the byte offset of the chunk whose records are being walked (None: top level)
+    chunk: int | None = None
 
     def drop(self, offset: int, length: int, reason: str) -> None:
         """Note unreadable bytes, with the one warning every reader prints for them."""
@@ -89,6 +102,21 @@ class Walk:
         self.warnings.append(
             f"{self.path}: damaged data at byte {offset} ({length} bytes) skipped: {reason}"
         )
+
+    def parse(self, opcode: int, buffer: Any, body: int, end: int) -> Any:
+        """``parse`` of a record this walk yielded; a record that does not parse (damaged
+        bytes the chunk CRCs do not cover) is a ``RecordingError`` naming the file and
+        the record's byte offset."""
+        try:
+            return parse(opcode, buffer, body, end)
+        except (McapError, struct.error, ValueError, UnicodeDecodeError, OverflowError) as error:
+            kind = Opcode(opcode).name.lower().replace("_", " ")
+            if self.chunk is None:
+                where = f"at byte {body - HEAD.size}"
+            else:
+                where = f"at byte {body - HEAD.size} of the chunk at byte {self.chunk}"
+            problem = str(error) or type(error).__name__
+            raise RecordingError(f"{self.path}: damaged {kind} record {where}: {problem}") from None
 
 
 def open_mcap(path: str | os.PathLike) -> tuple[IO[bytes], int]:
@@ -151,10 +179,59 @@ def top_records(data: mmap.mmap | bytes, size: int, walk: Walk) -> Iterator[tupl
 
 
 def records(data: mmap.mmap | bytes, size: int, walk: Walk) -> Iterator[tuple[int, Any, int, int]]:
-    """``(opcode, buffer, body, end)`` of every record of the file in order, the records
-    inside each chunk instead of the chunk; a damaged chunk is skipped with a warning."""
+    """``(opcode, buffer, body, end)`` of every record of the file, the records inside
+    each chunk instead of the chunk; a damaged chunk is skipped with a warning.
+
+    The summary's schemas and channels come first (after the header) when the file has
+    a sound summary (and the summary section is then not walked again); a message of a
+    channel not yet seen is held back and comes right after its channel's record."""
+    summary = sound_summary(data, size)
+    known: set[int] = set()
+    held: dict[int, list[bytes]] = {}
+    primed = summary is None
+    in_summary = False
+    for opcode, buffer, body, end in _file_records(data, size, walk):
+        if in_summary:  # given already, first
+            continue
+        if not primed:  # the summary's schemas and channels, after the header
+            primed = True
+            if opcode == Opcode.HEADER:
+                yield opcode, buffer, body, end
+            for found in _summary_records(data, summary or (0, 0)):
+                if found[0] == Opcode.CHANNEL:
+                    known.add(_U16.unpack_from(data, found[1])[0])
+                yield found[0], data, found[1], found[2]
+            if opcode == Opcode.HEADER:
+                continue
+        in_summary = opcode == Opcode.DATA_END and summary is not None
+        if end - body >= 2 and opcode in (Opcode.MESSAGE, Opcode.CHANNEL):
+            (channel,) = _U16.unpack_from(buffer, body)
+            if opcode == Opcode.MESSAGE and channel not in known:
+                held.setdefault(channel, []).append(bytes(buffer[body:end]))
+                continue
+            yield opcode, buffer, body, end
+            if opcode == Opcode.CHANNEL:
+                known.add(channel)
+                for message in held.pop(channel, ()):
+                    yield Opcode.MESSAGE, message, 0, len(message)
+            continue
+        yield opcode, buffer, body, end
+    walk.chunk = None
+    if held:
+        count = sum(len(messages) for messages in held.values())
+        walk.warnings.append(
+            f"{walk.path}: {count} messages of channels the file never defines skipped"
+        )
+
+
+def _file_records(
+    data: mmap.mmap | bytes, size: int, walk: Walk
+) -> Iterator[tuple[int, Any, int, int]]:
+    """The records of the file in file order, chunks opened (``walk.chunk`` tells which
+    chunk the records come from)."""
     for opcode, body, end in top_records(data, size, walk):
         if opcode != Opcode.CHUNK:
+            walk.chunk = None
             yield opcode, data, body, end
             continue
         try:
@@ -162,7 +239,41 @@ def records(data: mmap.mmap | bytes, size: int, walk: Walk) -> Iterator[tuple[in
         except DamagedChunk as error:
             walk.drop(body - HEAD.size, end - body + HEAD.size, f"chunk: {error}")
             continue
+        walk.chunk = body - HEAD.size
         yield from inner_records(buffer)
+        walk.chunk = None
+
+
+def sound_summary(data: mmap.mmap | bytes, size: int) -> tuple[int, int] | None:
+    """``(start, end)`` of the file's summary section when the file ends with a footer
+    whose summary CRC checks out (a summary without CRC is not trusted); else None."""
+    footer = size - len(MAGIC) - _FOOTER.size
+    if footer < len(MAGIC) or data[size - len(MAGIC) : size] != MAGIC:
+        return None
+    opcode, length, start, offsets, crc = _FOOTER.unpack_from(data, footer)
+    if opcode != Opcode.FOOTER or length != _FOOTER.size - HEAD.size or not crc:
+        return None
+    if not len(MAGIC) <= start < footer:
+        return None
+    if zlib.crc32(data[start : footer + _FOOTER.size - 4]) != crc:
+        return None
+    end = offsets if start <= offsets <= footer else footer
+    return start, end
+
+
+def _summary_records(
+    data: mmap.mmap | bytes, summary: tuple[int, int]
+) -> Iterator[tuple[int, int, int]]:
+    """``(opcode, body, end)`` of the schema and channel records of a sound summary."""
+    position, stop = summary
+    while position + HEAD.size <= stop:
+        opcode, length = HEAD.unpack_from(data, position)
+        body, end = position + HEAD.size, position + HEAD.size + length
+        if end > stop:
+            return
+        if opcode in (Opcode.SCHEMA, Opcode.CHANNEL):
+            yield opcode, body, end
+        position = end
 
 
 def inner_records(buffer: bytes) -> Iterator[tuple[int, bytes, int, int]]:

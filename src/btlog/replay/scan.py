@@ -27,7 +27,8 @@ from mcap.records import Channel
 
 from btlog.record import columns
 from btlog.record import format as fmt
-from btlog.record.walk import MESSAGE_HEAD, Walk, mapped, parse, records
+from btlog.record.reader import seq_of
+from btlog.record.walk import MESSAGE_HEAD, Walk, mapped, records
 
 _EVENTS_HEAD = b'{"tick":'
 _STATUS_KEY = b',"status":['
@@ -125,6 +126,8 @@ class McapScan:
         if self.batch:
             self.on_batch(self.batch)
             self.batch = RowBatch()
+        self.out.mutations.sort(key=seq_of)  # chunks may come in any order
+        self.out.answers.sort(key=seq_of)
         return self.out
 
     def _scan(self, walked: Iterator[tuple[int, Any, int, int]]) -> None:
@@ -144,9 +147,9 @@ class McapScan:
                     self.on_batch(self.batch)
                     self.batch = RowBatch()
             elif opcode == channel:
-                self._channel(parse(opcode, buffer, body, end))
+                self._channel(self.out.walk.parse(opcode, buffer, body, end))
             elif opcode == metadata and self.out.metadata is None:
-                record = parse(opcode, buffer, body, end)
+                record = self.out.walk.parse(opcode, buffer, body, end)
                 if record.name == fmt.METADATA_NAME:
                     self.out.metadata = record.metadata
 
