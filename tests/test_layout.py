@@ -2,7 +2,9 @@
 
 Every ``from btlog… import`` (at module level or inside a function) must point at a layer
 listed before the importing module's own layer, or at its own layer. A cycle between two
-layers, or an arrow up the data flow, fails with the offending imports named.
+layers, or an arrow up the data flow, fails with the offending imports named; so does a
+circle of modules within a layer (imports made only for type checking count: a module
+that needs another's type takes a Protocol instead).
 """
 
 from __future__ import annotations
@@ -78,3 +80,36 @@ def test_no_import_points_up_the_data_flow() -> None:
             if own is not None and rank is not None and rank > own:
                 upward.append(f"{module} -> {target}")
     assert upward == []
+
+
+def _module_graph() -> dict[str, set[str]]:
+    """Each module's imports of other btlog modules (``from btlog.x import y`` is the
+    module ``btlog.x.y`` when there is one, else ``btlog.x``), those made only for type
+    checking too: a circle of types is a circle all the same."""
+    paths = {_module_name(p): p for p in SRC.rglob("*.py")}
+    graph = {}
+    for module, path in paths.items():
+        targets = set()
+        for target in _imports(path):
+            while target not in paths and "." in target:
+                target = target.rsplit(".", 1)[0]
+            if target in paths and target != module:
+                targets.add(target)
+        graph[module] = targets
+    return graph
+
+
+def test_no_module_imports_itself_round_a_circle() -> None:
+    graph = _module_graph()
+    circles = []
+    for start in sorted(graph):
+        seen, stack = set(), [(start, (start,))]
+        while stack:
+            module, path = stack.pop()
+            for target in sorted(graph[module]):
+                if target == start:
+                    circles.append(" -> ".join((*path, start)))
+                elif target not in seen:
+                    seen.add(target)
+                    stack.append((target, (*path, target)))
+    assert circles == []

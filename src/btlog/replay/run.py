@@ -22,8 +22,9 @@ from bisect import bisect_right
 from collections import OrderedDict
 from dataclasses import dataclass
 from datetime import datetime
-from typing import TYPE_CHECKING, Any, NamedTuple
+from typing import Any, NamedTuple, Protocol
 
+import duckdb
 import orjson
 
 from btlog.replay.blocks import EventBatch
@@ -47,9 +48,6 @@ from btlog.replay.tables import only_row
 from btlog.state import State, StateProjection
 from btlog.status import STATUS_NAMES, Status
 from btlog.tree.model import Tree
-
-if TYPE_CHECKING:
-    from btlog.replay.database import RunDatabase
 
 #: A key past every time and tick (the first key of an empty block).
 _PAST = 2**63 - 1
@@ -96,6 +94,17 @@ class TimelineEntry(NamedTuple):
     value: Any
 
 
+class Database(Protocol):
+    """What a ``Run`` uses of the database holding it (``btlog.replay.database.RunDatabase``
+    is one): a protocol, so this module does not import the database that opens it."""
+
+    con: duckdb.DuckDBPyConnection
+
+    def snapshots_of(self, catalog: str) -> str:
+        """The qualified name of the ``_snapshots`` table of the run in ``catalog``."""
+        ...
+
+
 class Run:
     """One run of a ``RunDatabase``: its tree, moments, states and timeline.
 
@@ -105,7 +114,7 @@ class Run:
 
     CACHED_BLOCKS = 8
 
-    def __init__(self, database: RunDatabase, catalog: str, run_id: str, path: str) -> None:
+    def __init__(self, database: Database, catalog: str, run_id: str, path: str) -> None:
         self.con = database.con
         self.catalog = catalog
         self.run_id = run_id

@@ -11,17 +11,34 @@ history uses: a statement costs about a millisecond, a binary search microsecond
 from __future__ import annotations
 
 from collections.abc import Collection
-from typing import TYPE_CHECKING
+from typing import Protocol
 
+import duckdb
 import orjson
 
 from btlog.history import History, Statuses, Transition, TransitionIndex, Uids, Write
+from btlog.replay.moments import RunExtent
 from btlog.state import State
 from btlog.status import Status
 from btlog.tree.model import Tree
 
-if TYPE_CHECKING:
-    from btlog.replay.run import Run
+
+class StoredRun(Protocol):
+    """What ``SqlHistory`` reads of one stored run (``btlog.replay.run.Run`` is one): a
+    protocol, so this module does not import the run that uses it."""
+
+    con: duckdb.DuckDBPyConnection
+    catalog: str
+    extent: RunExtent
+
+    @property
+    def stored_id(self) -> str:
+        """The run's id in its tables."""
+        ...
+
+    def state_after(self, count: int) -> tuple[Tree, State]:
+        """The tree and state after the first ``count`` events."""
+        ...
 
 
 #: Runs with at most this many events are queried in memory (see the module docstring).
@@ -51,7 +68,7 @@ def _in_list(values: Collection[int]) -> str:
 class SqlHistory(History):
     """``History`` over one run of a ``RunDatabase``."""
 
-    def __init__(self, run: Run, in_memory: bool | None = None) -> None:
+    def __init__(self, run: StoredRun, in_memory: bool | None = None) -> None:
         self.run = run
         self._table = f"{run.catalog}.transitions"
         if in_memory is None:
