@@ -132,7 +132,7 @@ def _last_activation(tree: Tree, node: Node, state: State, history: History) -> 
     if end.status is FAILURE:
         return f"I tried to {act(node)}, but {_because_of(tree, node, end, history)}."
     text = f"I started to {act(node)} at {seconds(start.t_ns)} s, but stopped at "
-    return text + f"{seconds(end.t_ns)} s{_halted_because(tree, node, start, end, history)}."
+    return text + f"{seconds(end.t_ns)} s{_halted_because(tree, node, start, end, now, history)}."
 
 
 def _because_of(tree: Tree, node: Node, failed: Transition, history: History) -> str:
@@ -145,16 +145,16 @@ def _because_of(tree: Tree, node: Node, failed: Transition, history: History) ->
 
 
 def _halted_because(
-    tree: Tree, node: Node, start: Transition, halt: Transition, history: History
+    tree: Tree, node: Node, start: Transition, halt: Transition, now: int, history: History
 ) -> str:
     """`` because {cause}`` of the halt: the completion of the nearest ancestor that
     completed while X ran (a Timeout, a Parallel's other branch) or that halted it and
     then returned its result (a reactive parent whose check failed), or "" when the tree
-    itself was stopped."""
+    itself was stopped. Nothing after ``now`` is looked at: a live answer cannot know it."""
     ancestors = [a.uid for a in node.ancestors()]
     done = history.last(ancestors, COMPLETIONS, start.seq, halt.seq)
     if done is None:  # halted by an ancestor that completes right after its children stop
-        done = history.first(ancestors, COMPLETIONS, halt.seq, halt.seq + HALT_WINDOW)
+        done = history.first(ancestors, COMPLETIONS, halt.seq, min(halt.seq + HALT_WINDOW, now))
         if done is not None and done.t_ns - halt.t_ns > HALT_WINDOW_NS:
             done = None
     if done is None:
@@ -194,7 +194,7 @@ def _ended_before(
     scope = spoken(parent, goal_words(tree))
     if end.status is IDLE:
         how = f"was stopped at {seconds(end.t_ns)} s"
-        reason = _halted_because(tree, parent, start, end, history)
+        reason = _halted_because(tree, parent, start, end, state.seq, history)
     else:
         how = f"{'failed' if end.status is FAILURE else 'succeeded'} at {seconds(end.t_ns)} s"
         reason = ""
