@@ -100,3 +100,16 @@ def test_steps_stay_on_one_screen_and_list_the_events_stepped_over(chuck: Path) 
     assert all(len(step.splitlines()) <= 24 for step in steps)
     assert "look at chuck" not in steps[1]  # the whole tree is not reprinted
     assert "move to see chuck #6  IDLE -> RUNNING" in steps[1]  # the events stepped over
+
+
+def test_ask_answers_at_the_moment_as_btlog_ask_does(chuck: Path) -> None:
+    """At 12 s, past the last event (10.4 s), a running node has run to the moment asked,
+    in the replay as in ``btlog ask`` (one answer, every surface)."""
+    question = "How long did retreat arm take?"
+    asked = btlog("ask", chuck.name, "--at", "12s", question, cwd=chuck.parent)
+    assert asked.returncode == 0, asked.stderr
+    assert asked.stdout.strip() == "retreat arm has been running for 1.600 s."
+    replay = btlog("replay", chuck.name, "--plain", "--script", "-", cwd=chuck.parent,
+                   input=f"g 12s\nask {question}\nq\n")  # fmt: skip
+    assert replay.returncode == 0, replay.stderr
+    assert replay.stdout.rstrip().splitlines()[-1] == asked.stdout.strip()

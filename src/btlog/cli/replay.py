@@ -211,7 +211,7 @@ def _apply(stepper: Stepper, line: str) -> bool:
     elif word == "ask":
         tree, state = stepper.state()
         question = parts[1] if len(parts) > 1 else ""
-        text = answer(tree, state, question, stepper.run.history()).text
+        text = answer(tree, state, question, stepper.run.history(), stepper.moment.t_ns).text
         stepper.console.print(safe(text), highlight=False)
     elif word == "g" and len(parts) > 1:
         stepper.go(parts[1])
