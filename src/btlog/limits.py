@@ -11,8 +11,6 @@ take ``--max-nodes`` and ``--max-file-size`` to raise (or lower) the first two.
 
 from __future__ import annotations
 
-import ctypes
-import ctypes.util
 import math
 import os
 import resource
@@ -123,6 +121,8 @@ def fit_address_space() -> None:
     soft, _hard = resource.getrlimit(resource.RLIMIT_AS)
     if soft == resource.RLIM_INFINITY:
         return
+    import ctypes.util  # only under a limit: finding libc costs milliseconds
+
     os.environ.setdefault("ARROW_DEFAULT_MEMORY_POOL", "system")
     name = ctypes.util.find_library("c")
     mallopt = getattr(ctypes.CDLL(name), "mallopt", None) if name else None

@@ -13,22 +13,22 @@ from contextlib import contextmanager
 from pathlib import Path
 from typing import TYPE_CHECKING
 
-from rich.progress import BarColumn, Progress, TextColumn, TimeElapsedColumn
-from rich.text import Text
-
 from btlog.errors import EXIT_BAD_INPUT, EXIT_OK
 from btlog.explain.hierarchy import current_nodes
 from btlog.explain.insertion import apply_to_copy
-from btlog.explain.questions import Answer, answer
+from btlog.explain.questions import answer
 from btlog.explain.questions import explain as explain_all
 from btlog.limits import seconds
 from btlog.outputs import refuse_overwrite
 from btlog.render.escape import safe
-from btlog.render.terminal import blackboard_lines, format_ns, make_console, tree_lines
-from btlog.runner import RunConfig, execute
 from btlog.status import Status
 
+# Each command imports what only it uses (rich's widgets, the executor) when it runs, so
+# a warm ``btlog ask`` stays fast (tests/test_imports.py keeps each command's imports).
 if TYPE_CHECKING:
+    from rich.progress import Progress
+
+    from btlog.explain.questions import Answer
     from btlog.replay.database import Run, RunDatabase
     from btlog.replay.moments import Resolved
     from btlog.runner import LiveQuestion
@@ -41,6 +41,11 @@ def _print_json(data: object) -> None:
 # -- run ---------------------------------------------------------------------------------
 def run(args: Namespace) -> int:
     """``btlog run``: execute and record; print the file, event count and final status."""
+    from rich.progress import BarColumn, Progress, TextColumn, TimeElapsedColumn
+
+    from btlog.render.terminal import make_console
+    from btlog.runner import RunConfig, execute
+
     config = RunConfig(
         tree=args.tree,
         domain=args.domain,
@@ -123,6 +128,8 @@ def _open_runs(*paths: str) -> RunDatabase:
     from btlog.replay.database import open_runs
 
     if sys.stderr.isatty():
+        from btlog.render.terminal import make_console
+
         with make_console(stderr=True).status(
             "reading the recording (the first time builds its cache)…"
         ):
@@ -182,6 +189,8 @@ def ask(args: Namespace) -> int:
         return EXIT_BAD_INPUT
     print(safe(result.text))
     if result.insertion is not None:
+        from btlog.render.terminal import make_console, tree_lines
+
         changed = apply_to_copy(tree, result.insertion, seq=state.seq)
         console = make_console()
         console.print("\nThe tree after this insertion (the recording is unchanged):")
@@ -259,6 +268,10 @@ def show(args: Namespace) -> int:
         Path(args.html).write_text(page(title, tree, state, current, answers), encoding="utf-8")
         print(safe(args.html))
         return 0
+    from rich.text import Text
+
+    from btlog.render.terminal import blackboard_lines, make_console, tree_lines
+
     console = make_console(args.plain)
     console.print(moment_header(moment), highlight=False)
     for line in tree_lines(tree, state, current):
@@ -274,6 +287,8 @@ def moment_header(moment: Resolved) -> str:
     """``at WHEN: seq S, tick T, TIME (last event at L)``: the moment as every header
     names it (``btlog.replay.moments.Resolved``): S the last event applied, T the
     moment's tick, TIME the moment's own time, L the last event's when it differs."""
+    from btlog.render.terminal import format_ns
+
     last = "before the first event" if moment.seq is None else f"seq {moment.seq}"
     head = f"at {safe(moment.moment.text)}: {last}, tick {moment.tick}, {format_ns(moment.t_ns)}"
     if moment.last_event_t_ns is not None and moment.last_event_t_ns != moment.t_ns:
@@ -309,6 +324,8 @@ def timeline(args: Namespace) -> int:
         for row in rows:
             print(json.dumps(row, default=repr))
         return 0
+    from btlog.render.terminal import make_console
+
     console = make_console(args.plain)
     for row in rows:
         console.print(timeline_line(row), highlight=False)
@@ -319,6 +336,8 @@ def timeline(args: Namespace) -> int:
 
 def timeline_line(row: dict) -> str:
     """One event of a timeline on one line (names escaped)."""
+    from btlog.render.terminal import format_ns
+
     head = f"{row['seq']:>7}  {format_ns(row['t_ns']):>10}  tick {row['tick']:<6}"
     if row["kind"] == "write":
         value = json.dumps(row["value"], default=repr)
@@ -365,6 +384,8 @@ def sql(args: Namespace) -> int:
     else:
         from rich.table import Table
 
+        from btlog.render.terminal import make_console
+
         table = Table(*[safe(c) for c in columns])
         for row in rows:
             table.add_row(*[safe("NULL" if v is None else v) for v in row])
@@ -393,7 +414,7 @@ MAIN_TREE_CHOICES = {
 def validate(args: Namespace) -> int:
     """``btlog validate``: load a tree, build it as ``run`` does (every check a run makes
     before its first tick), and report what it holds."""
-    from btlog.runner import prepare
+    from btlog.runner import RunConfig, prepare
 
     config = RunConfig(
         tree=args.tree,

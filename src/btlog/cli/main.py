@@ -9,6 +9,7 @@ reported as one line saying so. ``BTLOG_DEBUG=1`` shows the traceback of either.
 from __future__ import annotations
 
 import argparse
+import importlib
 import os
 import re
 import sys
@@ -268,38 +269,49 @@ def build_parser() -> argparse.ArgumentParser:
     return parser
 
 
-def _handlers() -> dict[str, Callable[[argparse.Namespace], int]]:
-    from btlog.cli import cache, checks, commands, fleet, record_py, replay, sources, view
+#: Each command's function as ``module:function`` of ``btlog.cli``: a command imports
+#: only its own module, so ``ask`` never pays for the importers, the viewer or the fleet
+#: (``tests/test_imports.py`` keeps each command's import set).
+HANDLERS = {
+    "run": "commands:run",
+    "ask": "commands:ask",
+    "explain": "commands:explain",
+    "show": "commands:show",
+    "timeline": "commands:timeline",
+    "sql": "commands:sql",
+    "recover": "commands:recover",
+    "validate": "commands:validate",
+    "replay": "replay:replay",
+    "diff": "checks:diff",
+    "check": "checks:check",
+    "import": "sources:import_",
+    "export": "sources:export",
+    "attach": "sources:attach",
+    "record-py": "record_py:record_py",
+    "cache": "cache:cache_command",
+    "view": "view:view",
+    "fleet": "fleet:fleet",
+}
 
-    return {
-        "run": commands.run,
-        "ask": commands.ask,
-        "explain": commands.explain,
-        "show": commands.show,
-        "timeline": commands.timeline,
-        "sql": commands.sql,
-        "recover": commands.recover,
-        "validate": commands.validate,
-        "replay": replay.replay,
-        "diff": checks.diff,
-        "check": checks.check,
-        "import": sources.import_,
-        "export": sources.export,
-        "attach": sources.attach,
-        "record-py": record_py.record_py,
-        "cache": cache.cache_command,
-        "view": view.view,
-        "fleet": fleet.fleet,
-    }
+
+def handler(command: str) -> Callable[[argparse.Namespace], int]:
+    """The function of ``command``, its module imported now."""
+    module, function = HANDLERS[command].split(":")
+    return getattr(importlib.import_module(f"btlog.cli.{module}"), function)
 
 
 def _is_bad_input(error: BaseException) -> bool:
-    """Errors that describe the user's input (files, values, SQL), not a bug of btlog."""
-    import duckdb
-
-    from btlog.executor.behavior import NodeExecutionError
-
-    return isinstance(error, ValueError | OSError | duckdb.Error | NodeExecutionError)
+    """Errors that describe the user's input (files, values, SQL), not a bug of btlog.
+    DuckDB's and the executor's errors can only have been raised if their modules were
+    imported, so they are looked up, not imported."""
+    kinds: tuple[type[BaseException], ...] = (ValueError, OSError)
+    duckdb = sys.modules.get("duckdb")
+    if duckdb is not None:
+        kinds += (duckdb.Error,)
+    behavior = sys.modules.get("btlog.executor.behavior")
+    if behavior is not None:
+        kinds += (behavior.NodeExecutionError,)
+    return isinstance(error, kinds)
 
 
 def join_negative_moments(argv: Sequence[str]) -> list[str]:
@@ -346,7 +358,7 @@ def main(argv: Sequence[str] | None = None) -> int:
     try:
         apply_limit_flags(args)
         with cache_dir_of(args):
-            return int(_handlers()[args.command](args) or EXIT_OK)
+            return int(handler(args.command)(args) or EXIT_OK)
     except KeyboardInterrupt:
         print("btlog: interrupted", file=sys.stderr)
         return 130

@@ -6,14 +6,17 @@ import argparse
 import sys
 from argparse import Namespace
 from pathlib import Path
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 from btlog.cli.tree_flags import add_tree_flags
 from btlog.outputs import refuse_overwrite
 from btlog.render.escape import safe
-from btlog.sources.builder import DEFAULT_TICK_GAP_NS, BuildResult
-from btlog.tree.loader import TreeSource
-from btlog.tree.registry import Registry
+from btlog.sources import DEFAULT_TICK_GAP_NS
+
+if TYPE_CHECKING:  # the importers are imported by the command that runs them
+    from btlog.sources.builder import BuildResult
+    from btlog.tree.loader import TreeSource
+    from btlog.tree.registry import Registry
 
 
 def add_parsers(commands: argparse._SubParsersAction) -> None:
@@ -127,6 +130,8 @@ def _tree_source(args: Namespace) -> TreeSource | None:
         if args.main_tree or args.trees:
             raise ValueError("--main-tree and --trees choose the tree of --tree XML: give it")
         return None
+    from btlog.tree.loader import TreeSource
+
     return TreeSource(args.tree, args.main_tree, tuple(args.trees))
 
 

@@ -14,17 +14,18 @@ from array import array
 from bisect import bisect_left, bisect_right
 from collections.abc import Iterator
 from dataclasses import dataclass, field
-from typing import cast
+from typing import TYPE_CHECKING, cast
 
 import duckdb
 import orjson
-import pyarrow as pa
-import pyarrow.compute as pa_compute
 import zstandard
 
 from btlog.events import BlackboardWrite, TreeMutation
 from btlog.state import StateProjection
 from btlog.status import Status
+
+if TYPE_CHECKING:  # pyarrow builds the read model; a warm answer reads it without pyarrow
+    import pyarrow as pa
 
 #: Status codes as stored (DuckDB's ``enum_code`` of the status enum): the order of ``Status``.
 STATUS_BY_CODE = tuple(Status)
@@ -174,6 +175,8 @@ def event_blocks(
     native byte order), then the writes as a JSON list. The columns are cut from one
     Arrow read of ``transitions`` (in seq order, as the rows are stored, or sorted), the
     writes' JSON from DuckDB's (``_write_rows``), so nothing is done per row in Python."""
+    import pyarrow.compute as pa_compute
+
     columns = ", ".join(f"{sql} AS {name}" for name, sql, _code in _BLOCK_COLUMNS)
     params = {"run_id": run_id, "k": every}
     rows = con.sql(
@@ -228,6 +231,9 @@ def _write_rows(
     newline (so a long block can be parsed a row at a time), and the rows are streamed
     in small batches: a block's parts are slices of the batches'
     string buffers, never one string of the whole block."""
+    import pyarrow as pa
+    import pyarrow.compute as pa_compute
+
     reader = con.sql(
         """SELECT seq // $k AS block, ',' || chr(10) || json_array(seq, t_ns, tick, scope, key,
             value, type, writer_uid)::VARCHAR AS row
@@ -257,6 +263,9 @@ def _write_rows(
 
 def _changes(blocks: pa.Array) -> pa.Array:
     """For each row, whether its block differs from the previous row's (False first)."""
+    import pyarrow as pa
+    import pyarrow.compute as pa_compute
+
     if len(blocks) < 2:
         return pa.array([False] * len(blocks))
     differs = pa_compute.not_equal(blocks.slice(1), blocks.slice(0, len(blocks) - 1))

@@ -28,11 +28,14 @@ import re
 import uuid
 from dataclasses import dataclass
 from pathlib import Path
+from typing import TYPE_CHECKING
 
 import btlog
-from btlog.replay import ingest as ingestion
 from btlog.replay.connections import connect
 from btlog.replay.tables import INGEST_VERSION, create_schema
+
+if TYPE_CHECKING:  # ingestion (and pyarrow) is imported to build a cache, not to use one
+    from btlog.replay import ingest as ingestion
 
 SUFFIX = ".duckdb"
 #: The snapshots of a cache ``NAME.duckdb`` are in ``NAME.snapshots.duckdb``.
@@ -180,6 +183,8 @@ def build(path: str, cache: Path, snapshot_every: int) -> ingestion.IngestReport
     5 % smaller). The snapshots are not built here: a first question in SQL needs only
     the tables; the first state asked for builds them (``build_snapshots``).
     """
+    from btlog.replay import ingest as ingestion
+
     cache.parent.mkdir(parents=True, exist_ok=True)
     temporary = _temporary(cache)
     con = connect()
@@ -208,6 +213,8 @@ def build_snapshots(cache: Path, target: Path) -> float:
     """Build the snapshots of the run cached in ``cache`` into a new file ``target``
     (moved into place when complete); returns the seconds taken. The cache itself is
     only read (other processes may have it open)."""
+    from btlog.replay import ingest as ingestion
+
     temporary = _temporary(target)
     con = connect()
     try:

@@ -27,19 +27,22 @@ import os
 import re
 from collections.abc import Sequence
 from pathlib import Path
+from typing import TYPE_CHECKING
 
 import duckdb
 
 from btlog.errors import one_line
-from btlog.record.reader import RecordingError
+from btlog.record.walk import RecordingError
 from btlog.replay import cache
-from btlog.replay import ingest as ingestion
 from btlog.replay.connections import connect
 from btlog.replay.deadline import QueryTimeout, time_limit
 from btlog.replay.moments import MomentError
 from btlog.replay.run import ReplayError, Run, RunInfo, TimelineEntry
 from btlog.replay.snapshots import DEFAULT_SNAPSHOT_EVERY
 from btlog.replay.tables import INGEST_VERSION, PUBLIC_TABLES, create_schema, only_row
+
+if TYPE_CHECKING:  # ingestion (and pyarrow) is imported when a run is read, not when cached
+    from btlog.replay import ingest as ingestion
 
 CACHE_SUFFIX = ".duckdb"
 #: What a run id may hold (it is written into the views' SQL).
@@ -161,6 +164,8 @@ class RunDatabase:
         if place is None:
             table = f"{catalog}._snapshots"
             if only_row(self.con, f"SELECT count(*) FROM {table}")[0] == 0:
+                from btlog.replay import ingest as ingestion
+
                 ingestion.snapshots_into(self.con, table, catalog)
             return table
         name = f"{catalog}_snapshots"
@@ -178,6 +183,8 @@ class RunDatabase:
                 self.con.execute(
                     f"CREATE TABLE {name}._snapshots AS FROM {catalog}._snapshots LIMIT 0"
                 )
+                from btlog.replay import ingest as ingestion
+
                 ingestion.snapshots_into(self.con, f"{name}._snapshots", catalog)
                 return f"{name}._snapshots"
             if not self._attach_snapshots(target, name):
@@ -227,6 +234,8 @@ class RunDatabase:
         return False
 
     def _ingest_in_memory(self, path: str, catalog: str) -> None:
+        from btlog.replay import ingest as ingestion
+
         self.con.execute(f"ATTACH ':memory:' AS {catalog}")
         self.con.execute(f"USE {catalog}")
         try:

@@ -19,11 +19,10 @@ stays linear in the run's length (``STATE_BYTES_PER_EVENT``), never states x bou
 
 from __future__ import annotations
 
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 import duckdb
 import orjson
-import pyarrow as pa
 
 from btlog.events import TreeMutation
 from btlog.record import format as fmt
@@ -31,6 +30,9 @@ from btlog.replay.blocks import STATUS_BY_CODE, event_blocks
 from btlog.replay.tables import insert_arrow
 from btlog.state import RECOVERY_TYPE, RETRY_TYPE, StateProjection
 from btlog.tree.model import EXECUTION_KINDS, Tree
+
+if TYPE_CHECKING:  # pyarrow builds the read model; a warm answer reads it without pyarrow
+    import pyarrow as pa
 
 #: Events between two snapshots. ``state_at`` reads one snapshot row and decodes and
 #: folds at most this many events (~2.5 µs each, all told), on top of a fixed ~2.5 ms
@@ -115,6 +117,8 @@ def snapshot_rows(
     """The ``_snapshots`` rows of a run (without ``run_id``), one every ``every`` events.
     Built as SQL over the tables (``SNAPSHOTS_SQL``), but for the retry counts, folded
     by ``StateProjection`` over the few events that change them."""
+    import pyarrow as pa
+
     mutations = load_mutations(con, run_id)
     final = StateProjection(tree)
     for mutation in mutations:
@@ -270,6 +274,8 @@ def _retry_attempts(
     projection folded over the only events that change it — failures of retries' children,
     the retry nodes' own changes, and the mutations (which may add retries). ``counted``:
     the uids of every retry node and of every child of one, all mutations applied."""
+    import pyarrow as pa
+
     rows = con.execute(
         """SELECT seq, t_ns, tick, uid, enum_code(prev_status), enum_code(status)
         FROM transitions WHERE run_id = $run_id

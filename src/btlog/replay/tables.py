@@ -9,10 +9,12 @@ The public tables (``runs``, ``nodes``, ``transitions``, ``blackboard``, ``ticks
 
 from __future__ import annotations
 
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 import duckdb
-import pyarrow as pa
+
+if TYPE_CHECKING:
+    import pyarrow as pa
 
 from btlog.status import STATUS_NAMES
 

@@ -22,8 +22,10 @@ from __future__ import annotations
 
 import os
 
-from btlog.sources.builder import SourceError
-
+#: A pause longer than this between transitions starts a new tick, for the importers that
+#: infer ticks (``btlog.sources.builder``); here so the command line can show it without
+#: importing them.
+DEFAULT_TICK_GAP_NS = 1_000_000
 FILELOG_MAGIC = b"BTCPP4-FileLogger2"
 SQLITE_MAGIC = b"SQLite format 3\x00"
 MCAP_MAGIC = b"\x89MCAP0\r\n"
@@ -34,6 +36,7 @@ def detect(path: str | os.PathLike) -> str:
     SQLite file with rosbag2's tables, a ``.zstd`` storage file), ``"btcpp-filelog2"``,
     ``"btcpp-sqlite"`` (any other SQLite file: ``btcpp_sqlite`` checks its tables) or
     ``"btcpp-fbl"`` (BT.CPP 3's FileLogger: a ``.fbl`` name, or a header that fits)."""
+    from btlog.sources.builder import SourceError
     from btlog.sources.rosbag2 import is_rosbag2_sqlite, storage_of
 
     if os.path.isdir(path):

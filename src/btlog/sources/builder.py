@@ -45,11 +45,10 @@ from btlog.events import (
     type_name,
 )
 from btlog.record.recorder import Recorder
+from btlog.sources import DEFAULT_TICK_GAP_NS  # a gap this long starts a new tick (rule 3)
 from btlog.status import FAILURE, IDLE, RUNNING, SUCCESS, Status
 from btlog.tree.model import Tree
 
-#: A gap between two transitions longer than this starts a new tick (rule 3).
-DEFAULT_TICK_GAP_NS = 1_000_000
 #: The latest wall time a recording holds, in ns since the Unix epoch: its times are
 #: signed 64-bit nanoseconds (2262-04-11), and an MCAP log time cannot precede 1970.
 LATEST_NS = (1 << 63) - 1

@@ -22,7 +22,6 @@ from __future__ import annotations
 
 import os
 
-from btlog import documents
 from btlog.tree.model import Tree
 
 #: The attribute that holds a node's own description.
@@ -32,6 +31,8 @@ DESCRIPTION = "_description"
 def load_descriptions(path: str | os.PathLike[str]) -> dict[str, str]:
     """The entries of a descriptions file (``documents.DocumentError`` when it is not
     one: one line naming the file, line and key)."""
+    from btlog import documents  # YAML and JSON Schema: only when a file is read
+
     data = documents.load(path, "descriptions", "descriptions file")
     return {str(key): " ".join(str(value).split()) for key, value in (data or {}).items()}
 
