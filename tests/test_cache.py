@@ -171,3 +171,44 @@ def test_cache_command_lists_and_clears(tmp_path):
     cleared = btlog("cache", "--clear", "--cache-dir", str(folder))
     assert cleared.returncode == 0 and "removed 1 files" in cleared.stdout
     assert cache.entries(folder) == []
+
+
+def test_a_recordings_digest_is_remembered_for_the_file_as_it_is(tmp_path, caches):
+    """A warm open does not read the whole recording again: its digest is remembered in
+    the cache folder with the file's size, times and a hash of its two ends."""
+    path = tmp_path / "big.bin"
+    path.write_bytes(os.urandom(3 * cache.FINGERPRINT_BYTES))
+    assert cache_location(path).name.startswith(cache.content_hash(path)[:32])
+    [memo] = (caches / cache.DIGESTS).iterdir()
+    assert memo.read_text(encoding="ascii").split()[1] == cache.content_hash(path)
+    identity = memo.read_text(encoding="ascii").split()[0]
+    memo.write_text(f"{identity} {'0' * 64}\n", encoding="ascii")
+    assert cache_location(path).name.startswith("0" * 32), "the remembered digest is used"
+
+
+def test_a_change_between_the_fingerprinted_ends_is_seen(tmp_path, caches):
+    """A byte changed in the middle of a recording (outside the hashed ends), its size and
+    mtime kept: the ctime tells, and the whole file is hashed again."""
+    path = tmp_path / "big.bin"
+    data = bytearray(os.urandom(3 * cache.FINGERPRINT_BYTES))
+    path.write_bytes(data)
+    before = cache_location(path)
+    status = path.stat()
+    data[len(data) // 2] ^= 0xFF
+    with open(path, "r+b") as file:  # in place: same inode
+        file.write(data)
+    os.utime(path, ns=(status.st_atime_ns, status.st_mtime_ns))
+    assert (path.stat().st_ino, path.stat().st_size) == (status.st_ino, status.st_size)
+    after = cache_location(path)
+    assert after != before
+    assert after.name.startswith(cache.content_hash(path)[:32])
+
+
+def test_clear_removes_the_remembered_digests(tmp_path, caches):
+    path = record_loop(tmp_path / "run.mcap")
+    with open_runs(path):
+        pass
+    assert list((caches / cache.DIGESTS).iterdir())
+    cache.clear(caches)
+    assert list((caches / cache.DIGESTS).iterdir()) == []
+    assert cache.entries(caches) == []

@@ -10,7 +10,12 @@ version and btlog's version) and the snapshot interval, so:
   old cache, and a moved or copied recording reuses its cache;
 - two btlog versions never share a file.
 
-Hashing reads the whole file once per open (~0.9 GB/s here; see ``benchmarks/``). A cache
+Hashing reads the whole file (~0.9 GB/s here; see ``benchmarks/``), so the digest is
+remembered in the cache folder (``digests/``, one line per recording file) with what
+identifies the file as it is now: its size, mtime and ctime (which no tool sets back: a
+file rewritten in place, even with its mtime restored, gets a new ctime) and a hash of
+its first and last 64 KiB. A warm open of a recording of any size stats and reads
+128 KiB of it; any change of those hashes the whole file again. A cache
 is built under a temporary name holding the builder's pid and moved into place when
 complete; the leftovers of a killed build (its pid gone) are removed on the next open.
 Using a cache touches its mtime, and after a build the least recently used caches are
@@ -28,7 +33,7 @@ import re
 import uuid
 from dataclasses import dataclass
 from pathlib import Path
-from typing import TYPE_CHECKING
+from typing import TYPE_CHECKING, BinaryIO
 
 import btlog
 from btlog.replay.connections import connect
@@ -46,6 +51,10 @@ DEFAULT_MAX_MB = 2048
 #: ~0.2 MB instead of ~2.5 MB for a 30 KB recording (big caches compress better in big
 #: blocks: 31 MB instead of 9.7 MB at 1M events).
 SMALL_RECORDING = 512 * 1024
+#: The folder (in the cache folder) remembering each recording file's digest.
+DIGESTS = "digests"
+#: Bytes hashed at each end of a recording to tell whether a remembered digest is its.
+FINGERPRINT_BYTES = 64 * 1024
 #: A temporary cache of a build in progress: ``.<name>.<pid>-<hex>.duckdb`` (+ ``.wal``).
 _TEMPORARY = re.compile(r"^\..+\.(\d+)-[0-9a-f]{8}\.duckdb(\.wal)?$")
 
@@ -67,6 +76,39 @@ def content_hash(path: str | os.PathLike) -> str:
         return hashlib.file_digest(file, "sha256").hexdigest()
 
 
+def recording_digest(path: str | os.PathLike, root: Path) -> str:
+    """``content_hash(path)``, remembered in ``root/digests`` for the file as it is now
+    (``_identity``): hashed again only when the file changed (or was never hashed)."""
+    with open(path, "rb") as file:
+        status = os.fstat(file.fileno())
+        identity = _identity(file, status)
+        memo = root / DIGESTS / f"{status.st_dev}-{status.st_ino}"
+        try:
+            remembered = memo.read_text(encoding="ascii").split()
+        except (OSError, UnicodeDecodeError):
+            remembered = []
+        if len(remembered) == 2 and remembered[0] == identity:
+            return remembered[1]
+        file.seek(0)
+        digest = hashlib.file_digest(file, "sha256").hexdigest()
+    with contextlib.suppress(OSError):  # a folder that cannot be written: hash each time
+        memo.parent.mkdir(parents=True, exist_ok=True)
+        temporary = memo.with_name(f".{memo.name}.{os.getpid()}-{uuid.uuid4().hex[:8]}")
+        temporary.write_text(f"{identity} {digest}\n", encoding="ascii")
+        os.replace(temporary, memo)
+    return digest
+
+
+def _identity(file: BinaryIO, status: os.stat_result) -> str:
+    """What identifies an open file's content without reading it all: size, mtime and
+    ctime (ns), and a BLAKE2b of its first and last ``FINGERPRINT_BYTES``."""
+    fingerprint = hashlib.blake2b(file.read(FINGERPRINT_BYTES), digest_size=16)
+    if status.st_size > FINGERPRINT_BYTES:
+        file.seek(max(status.st_size - FINGERPRINT_BYTES, FINGERPRINT_BYTES))
+        fingerprint.update(file.read(FINGERPRINT_BYTES))
+    return f"{status.st_size}:{status.st_mtime_ns}:{status.st_ctime_ns}:{fingerprint.hexdigest()}"
+
+
 def cache_format() -> str:
     """What a cache's layout depends on besides the recording: layout and btlog versions."""
     return f"f{INGEST_VERSION}-v{btlog.__version__}"
@@ -76,8 +118,9 @@ def cache_path(
     recording: str | os.PathLike, snapshot_every: int, cache_dir: str | os.PathLike | None = None
 ) -> Path:
     """Where the cache of ``recording`` (as it is now) lives."""
-    digest = content_hash(recording)[:32]
-    return cache_root(cache_dir) / f"{digest}-{cache_format()}-k{snapshot_every}{SUFFIX}"
+    root = cache_root(cache_dir)
+    digest = recording_digest(recording, root)[:32]
+    return root / f"{digest}-{cache_format()}-k{snapshot_every}{SUFFIX}"
 
 
 @dataclass(frozen=True)
@@ -103,7 +146,8 @@ def entries(root: Path) -> list[CacheEntry]:
 
 
 def clear(root: Path) -> tuple[int, int]:
-    """Remove every cache file (and leftover) of ``root``; (files removed, bytes freed)."""
+    """Remove every cache file (and leftover) of ``root`` and the remembered digests;
+    (cache files removed, bytes freed)."""
     removed = freed = 0
     if not root.is_dir():
         return 0, 0
@@ -112,6 +156,9 @@ def clear(root: Path) -> tuple[int, int]:
             size = path.stat().st_size
             path.unlink(missing_ok=True)
             removed, freed = removed + 1, freed + size
+    if (root / DIGESTS).is_dir():  # the remembered digests (bytes each) go too, uncounted
+        for path in (root / DIGESTS).iterdir():
+            path.unlink(missing_ok=True)
     return removed, freed
 
 
