@@ -113,12 +113,17 @@ def _imports(folder: Path, *argv: str | Path) -> tuple[int, set[str], list[str]]
     return found["code"], set(found["packages"]) - _bare_packages(), found["modules"]
 
 
+#: Light modules the command line's parser imports for its defaults, whatever the command.
+PARSER = {"btlog.sources.tick_gap"}
+
+
 def _unneeded(modules: list[str], names: tuple[str, ...]) -> list[str]:
     """The ``modules`` that are, or are inside, one of ``names`` (a name ending in a dot
-    matches only the modules inside it)."""
+    matches only the modules inside it), the parser's own (``PARSER``) apart."""
     return [
         m
         for m in modules
+        if m not in PARSER
         if any(
             m.startswith(n) if n.endswith(".") else m == n or m.startswith(n + ".") for n in names
         )
@@ -162,6 +167,7 @@ def warm(tmp_path_factory: pytest.TempPathFactory) -> Path:
         "import",
         "export",
         "attach",
+        "record-py",
         "cache",
         "view",
         "recover",

@@ -11,7 +11,7 @@ from typing import TYPE_CHECKING, Any
 from btlog.cli.tree_flags import add_tree_flags
 from btlog.outputs import refuse_overwrite
 from btlog.render.escape import safe
-from btlog.sources import DEFAULT_TICK_GAP_NS
+from btlog.sources.tick_gap import DEFAULT_TICK_GAP_NS
 
 if TYPE_CHECKING:  # the importers are imported by the command that runs them
     from btlog.sources.builder import BuildResult

@@ -22,10 +22,6 @@ from __future__ import annotations
 
 import os
 
-#: A pause longer than this between transitions starts a new tick, for the importers that
-#: infer ticks (``btlog.sources.builder``); here so the command line can show it without
-#: importing them.
-DEFAULT_TICK_GAP_NS = 1_000_000
 FILELOG_MAGIC = b"BTCPP4-FileLogger2"
 SQLITE_MAGIC = b"SQLite format 3\x00"
 MCAP_MAGIC = b"\x89MCAP0\r\n"

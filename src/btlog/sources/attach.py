@@ -42,10 +42,10 @@ from typing import Any
 
 from btlog.events import GAP_SCOPE, Gap
 from btlog.explain.words import seconds
-from btlog.sources import DEFAULT_TICK_GAP_NS
 from btlog.sources.btcpp_records import decode_records
 from btlog.sources.btcpp_tree import tree_from_log_xml
 from btlog.sources.builder import (
+    DEFAULT_TICK_GAP_NS,
     BuildResult,
     RecordingBuilder,
     Source,

@@ -38,9 +38,9 @@ from pathlib import Path
 from lxml import etree
 
 from btlog import limits
-from btlog.sources import DEFAULT_TICK_GAP_NS
 from btlog.sources.btcpp_tree import check_same_tree
 from btlog.sources.builder import (
+    DEFAULT_TICK_GAP_NS,
     BuildResult,
     RecordingBuilder,
     Source,

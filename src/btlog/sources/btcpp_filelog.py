@@ -20,10 +20,11 @@ from collections.abc import Iterator
 from dataclasses import dataclass
 from pathlib import Path
 
-from btlog.sources import DEFAULT_TICK_GAP_NS, FILELOG_MAGIC
+from btlog.sources import FILELOG_MAGIC
 from btlog.sources.btcpp_records import RECORD_SIZE, decode_records, record_at
 from btlog.sources.btcpp_tree import tree_from_file, tree_from_log_xml
 from btlog.sources.builder import (
+    DEFAULT_TICK_GAP_NS,
     BuildResult,
     RecordingBuilder,
     Source,

@@ -31,10 +31,10 @@ from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
 
-from btlog.sources import DEFAULT_TICK_GAP_NS
 from btlog.sources.btcpp_records import status_of
 from btlog.sources.btcpp_tree import tree_from_file, tree_from_log_xml
 from btlog.sources.builder import (
+    DEFAULT_TICK_GAP_NS,
     BuildResult,
     RecordingBuilder,
     Source,

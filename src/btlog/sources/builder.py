@@ -45,7 +45,7 @@ from btlog.events import (
     type_name,
 )
 from btlog.record.recorder import Recorder
-from btlog.sources import DEFAULT_TICK_GAP_NS  # a gap this long starts a new tick (rule 3)
+from btlog.sources.tick_gap import DEFAULT_TICK_GAP_NS
 from btlog.status import FAILURE, IDLE, RUNNING, SUCCESS, Status
 from btlog.tree.model import Tree
 

@@ -27,9 +27,9 @@ from collections.abc import Iterator
 from dataclasses import dataclass, field
 from pathlib import Path
 
-from btlog.sources import DEFAULT_TICK_GAP_NS
 from btlog.sources.btcpp_tree import tree_from_file, tree_from_log_xml
 from btlog.sources.builder import (
+    DEFAULT_TICK_GAP_NS,
     BuildResult,
     RecordingBuilder,
     Source,
