@@ -7,14 +7,18 @@ limit; these tests run the real command line under such a limit (``ulimit -v``).
 
 from __future__ import annotations
 
+import time
 from pathlib import Path
 
+import orjson
 import pytest
 
 from btlog.replay.database import open_runs
 from btlog.replay.snapshots import STATE_BYTES_PER_EVENT
+from btlog.view.export import export_data
+from btlog.view.model import RunView
 from tests.cli_support import btlog
-from tests.mcap_support import record_tree, wide_tree, write_blackboard_dump
+from tests.mcap_support import record_tree, subtrees_tree, wide_tree, write_blackboard_dump
 
 #: The address space the commands are given: what a small container allows.
 ADDRESS_SPACE = 2 << 30
@@ -77,3 +81,30 @@ def test_a_wide_tree_is_read_within_an_address_space_limit(wide: Path) -> None:
     ):
         result = btlog(command[0], wide, *command[1:], address_space=ADDRESS_SPACE)
         assert result.returncode == 0, (command, result.stderr)
+
+
+def _export_of(path: Path) -> tuple[float, int, dict]:
+    """(seconds, bytes of its JSON, run data) of the exported page's data for ``path``."""
+    started = time.perf_counter()
+    with open_runs(path, cache=False) as database:
+        data = export_data([RunView(database, database.run(), "run")], None, None)
+    return time.perf_counter() - started, len(orjson.dumps(data)), data["runs"][0]
+
+
+def test_an_export_of_many_subtrees_is_linear(tmp_path: Path) -> None:
+    """5,000 SubTrees took minutes and a page of 345 MB (every answer set held the goal's
+    5,000 steps): the answers that depend only on the tree are computed once, and the
+    page holds each distinct answer once."""
+    small = record_tree(tmp_path / "s500.mcap", subtrees_tree(500), 1)
+    large = record_tree(tmp_path / "s1000.mcap", subtrees_tree(1000), 1)
+    _export_of(small)  # imports and caches warmed
+    small_time, small_size, _ = _export_of(small)
+    large_time, large_size, run = _export_of(large)
+    assert large_size < 2.5 * small_size, (small_size, large_size)
+    assert large_time < 4 * small_time + 2, (small_time, large_time)
+    table = run["answers"]["table"]
+    goals = [a for a in table if a["intent"] == "how_goal"]
+    assert len(goals) == 1 and "I need to do 1000 steps" in goals[0]["answer"]
+    assert len(run["answers"]["sets"]) > 1000, "a set for each leaf run"
+    exported = btlog("view", large, "--export", tmp_path / "page.html")
+    assert exported.returncode == 0, exported.stderr

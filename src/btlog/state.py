@@ -58,6 +58,13 @@ class State:
     #: The node the last event reset from RUNNING to IDLE (None after any other event):
     #: its result, if it comes next, ends that activation (``btlog.history.resumes``).
     halted: int | None = None
+    #: The nodes whose status is RUNNING (kept in step with ``status`` by the fold, filled
+    #: from it when a state is built): the current nodes without a walk of the tree.
+    running: set[int] = field(default_factory=set)
+
+    def __post_init__(self) -> None:
+        if not self.running:
+            self.running = {uid for uid, status in self.status.items() if status is RUNNING}
 
     def status_of(self, uid: int) -> Status:
         """A node's status (IDLE if it never changed)."""
@@ -137,6 +144,10 @@ class StateProjection(Subscriber):
         state.t_ns = t_ns
         state.tick = tick
         state.status[uid] = status
+        if status is RUNNING:
+            state.running.add(uid)
+        else:
+            state.running.discard(uid)
         if prev is IDLE and not (status in (SUCCESS, FAILURE) and state.halted == uid):
             state.activation[uid] = seq
         state.halted = uid if prev is RUNNING and status is IDLE else None

@@ -270,13 +270,13 @@ def earlier_wrong(tree: Tree, state: State, history: History) -> tuple[int, str]
     ``state``: the time its leaf failed and what Q6 said then (``episode_sentence``),
     as the run's story tells that episode."""
     now = state.seq
-    handlers = [n for n in tree if handler_of(n) is not None]
+    handlers = tree.shaped("handlers", lambda: [n for n in tree if handler_of(n) is not None])
     windows = []
     for handler in handlers:
         failed = _last_real_failure(tree, handler, now, history)
         if failed is not None:
             windows.append((failed.seq, handler, failed))
-    leaves = [n.uid for n in tree if n.is_execution]
+    leaves = tree.shaped("leaf uids", lambda: [n.uid for n in tree if n.is_execution])
     best: tuple[int, Transition] | None = None
     for _, handler, failed in sorted(windows, key=lambda w: w[0], reverse=True):
         end = _window_end(handler, failed, now, history)

@@ -26,19 +26,41 @@ from collections.abc import Callable
 
 from btlog.explain.words import act, goal_words, is_named, words
 from btlog.state import State
-from btlog.status import IDLE, RUNNING
+from btlog.status import RUNNING
 from btlog.tree.model import DECORATOR, SUBTREE, Node, Tree
 
 
 def current_nodes(tree: Tree, state: State) -> list[Node]:
     """The execution nodes RUNNING now (tree order); if none, the last execution node to
     change status (resets to IDLE do not count); empty before any leaf ran."""
-    running = [n for n in tree if n.is_execution and state.status.get(n.uid, IDLE) is RUNNING]
+    running = [tree.nodes[uid] for uid in state.running if uid in tree.nodes]
+    running = [n for n in running if n.is_execution and state.status_of(n.uid) is RUNNING]
     if running:
-        return running
+        return in_tree_order(running)
     if state.last_leaf is not None and state.last_leaf in tree.nodes:
         return [tree.node(state.last_leaf)]
     return []
+
+
+def in_tree_order(nodes: list[Node]) -> list[Node]:
+    """``nodes`` of one tree in depth-first pre-order, without walking the tree: sorted by
+    their paths of positions among siblings (each parent's children indexed once)."""
+    if len(nodes) < 2:
+        return nodes
+    positions: dict[int, dict[int, int]] = {}
+
+    def path(node: Node) -> list[int]:
+        steps = []
+        while node.parent is not None:
+            parent = node.parent
+            index = positions.get(id(parent))
+            if index is None:
+                index = positions[id(parent)] = {id(c): i for i, c in enumerate(parent.children)}
+            steps.append(index[id(node)])
+            node = parent
+        return steps[::-1]
+
+    return sorted(nodes, key=path)
 
 
 def join_answers(texts: list[str]) -> str:

@@ -197,11 +197,9 @@ def answer(
     elif intent == "goal":
         text = goal(tree)
     elif intent == "how_subgoal":
-        text = per_node(
-            nodes, lambda n: how(subgoal_node(n), "subgoal"), "Sorry. I don't have a subgoal."
-        )
+        text = per_node(nodes, lambda n: _how_subgoal(tree, n), "Sorry. I don't have a subgoal.")
     elif intent == "how_goal":
-        text = how(tree.root, "goal", tree)
+        text = tree.shaped(("how", "goal"), lambda: how(tree.root, "goal", tree))
     elif intent == "wrong":
         text = what_went_wrong_over_history(tree, state, history)
     elif intent == "next":
@@ -209,6 +207,13 @@ def answer(
     else:
         return _can(tree, nodes, question, argument or "")
     return Answer(question, intent, text, uids)
+
+
+def _how_subgoal(tree: Tree, node: Node) -> str:
+    """Q5 for the subgoal of ``node``, once per subgoal and shape of the tree."""
+    target = subgoal_node(node)
+    key = ("how", "subgoal", None if target is None else target.uid)
+    return tree.shaped(key, lambda: how(target, "subgoal"))
 
 
 def _next(tree: Tree, state: State, history: History | None, nodes: list[Node]) -> str:

@@ -47,6 +47,7 @@ recorded):
 
 from __future__ import annotations
 
+import functools
 import re
 
 from btlog.tree.descriptions import DESCRIPTION
@@ -134,6 +135,7 @@ def _base_form(verb: str) -> str:
     return verb[:-1]
 
 
+@functools.lru_cache(maxsize=1 << 16)
 def phrase(text: str) -> str | None:
     """A description as an answer speaks it (see the module docstring), or None when it
     is documentation rather than a phrase for the node."""
@@ -147,6 +149,7 @@ def phrase(text: str) -> str | None:
     return " ".join(parts)
 
 
+@functools.lru_cache(maxsize=1 << 16)
 def humanize(text: str, own_type: str = "") -> str:
     """``text`` as words when it is an identifier (see the module docstring), else as it
     is but for a capitalised first word; ``own_type``, a control's or decorator's type,

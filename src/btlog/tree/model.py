@@ -15,10 +15,13 @@ insertion (the paper's Algorithm 9) is a change of this model, described by a
 
 from __future__ import annotations
 
-from collections.abc import Iterator
+from collections.abc import Callable, Hashable, Iterator
 from dataclasses import dataclass, field
+from typing import Any, TypeVar, cast
 
 from btlog.limits import MAX_DEPTH
+
+T = TypeVar("T")
 
 CONTROL = "control"
 DECORATOR = "decorator"
@@ -203,10 +206,20 @@ class Tree:
     #: why ``name`` is the main tree: "--main-tree", "main_tree" (main_tree_to_execute),
     #: "only" (the only tree) or "uncalled" (the only tree no other tree calls)
     main_choice: str = ""
+    #: values that depend only on the tree's nodes (``shaped``), emptied by an insertion
+    _shaped: dict[Hashable, Any] = field(default_factory=dict, repr=False)
 
     def __post_init__(self) -> None:
         if not self.nodes:
             self.nodes = {n.uid: n for n in self.root.walk()}
+
+    def shaped(self, key: Hashable, compute: Callable[[], T]) -> T:
+        """``compute()`` once for this shape of the tree: a value that depends only on its
+        nodes (the steps below a goal, the nodes of a kind), kept under ``key`` until a
+        node is inserted. Callers must not change what it returns."""
+        if key not in self._shaped:
+            self._shaped[key] = compute()
+        return cast(T, self._shaped[key])
 
     def __iter__(self) -> Iterator[Node]:
         return self.root.walk()
@@ -326,6 +339,7 @@ class Tree:
         index = 0 if after is None else parent.children.index(after) + 1
         subtree.parent = parent
         parent.children.insert(index, subtree)
+        self._shaped.clear()
         self._register_inserted(subtree, parent.scope, seq)
         return index
 

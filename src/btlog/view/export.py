@@ -16,6 +16,8 @@ from __future__ import annotations
 
 from typing import Any
 
+import orjson
+
 from btlog.explain.hierarchy import current_nodes
 from btlog.explain.questions import QUESTIONS
 from btlog.history import LiveHistory
@@ -37,15 +39,16 @@ def run_data(view: RunView) -> dict[str, Any]:
     """One run of an exported page: its meta, every event as columns indexed by seq
     (``st``: the new status's code for a status change, the index into ``writes`` for a
     blackboard write), and the standard answers and current nodes after every event where
-    they change (``answers.at``: counts, ascending; ``answers.sets``)."""
+    they change (``answers``: see ``_AnswerSets``)."""
     run = view.run
     columns: dict[str, list] = {k: [] for k in ("t", "tick", "kind", "uid", "st", "prev")}
     writes: list[list] = []
     unset = _unset_seqs(view)
     mutations = {m.seq: m for m in run.mutations}
-    projection = LiveHistory(run.tree)  # the state and the run's history so far
-    changes: dict[str, list] = {"at": [], "sets": []}
-    _record_answers(projection, 0, changes)
+    # the state and the run's history so far, its snapshots spread as the read model's
+    projection = LiveHistory(run.tree, snapshot_every=run.snapshot_every)
+    changes = _AnswerSets()
+    changes.record(projection, 0)
     for entry in run.timeline():
         columns["t"].append(entry.t_ns)
         columns["tick"].append(entry.tick)
@@ -68,12 +71,12 @@ def run_data(view: RunView) -> dict[str, Any]:
         else:
             columns["st"].append(0)
             projection.on_mutation(mutations[entry.seq])
-        _record_answers(projection, entry.seq + 1, changes)
+        changes.record(projection, entry.seq + 1)
     return {
         "meta": view.meta(),
         "events": {**columns, "writes": writes},
         "ticks": _ticks(view),
-        "answers": changes,
+        "answers": changes.to_json(),
     }
 
 
@@ -94,16 +97,49 @@ def _unset_seqs(view: RunView) -> set[int]:
     return {row[0] for row in rows}
 
 
-def _record_answers(projection: LiveHistory, count: int, changes: dict[str, list]) -> None:
-    """Append the answers after ``count`` events when they differ from the last ones."""
-    tree, state = projection.tree, projection.state
-    found = {
-        "answers": answers_json(tree, state, projection),
-        "current": [n.uid for n in current_nodes(tree, state)],
-    }
-    if not changes["sets"] or changes["sets"][-1] != found:
-        changes["at"].append(count)
-        changes["sets"].append(found)
+class _AnswerSets:
+    """The answers after each event, as the page holds them: ``at`` (counts, ascending)
+    and ``sets`` (the current nodes and the indexes of the answers into ``table``, where
+    each distinct answer is written once, without its nodes when they are the current
+    ones), a set only where it changes. The page's size
+    is so bounded by the distinct answers, not by events x answer length (a goal of
+    5,000 steps is said in one long answer, which would otherwise be repeated at every
+    event)."""
+
+    def __init__(self) -> None:
+        self.at: list[int] = []
+        self.sets: list[dict[str, list[int]]] = []
+        self.table: list[dict[str, Any]] = []
+        self._index: dict[tuple[str, bytes], int] = {}
+
+    def record(self, projection: LiveHistory, count: int) -> None:
+        """Append the answers after ``count`` events when they differ from the last ones."""
+        tree, state = projection.tree, projection.state
+        current = [n.uid for n in current_nodes(tree, state)]
+        answers = [self._indexed(a, current) for a in answers_json(tree, state, projection)]
+        found = {"answers": answers, "current": current}
+        if not self.sets or self.sets[-1] != found:
+            self.at.append(count)
+            self.sets.append(found)
+
+    def _indexed(self, answer: dict[str, Any], current: list[int]) -> int:
+        """The index of ``answer`` in the table, which it joins if new; its nodes are left
+        out when they are the ``current`` ones (the page puts them back)."""
+        if answer["nodes"] == current:
+            answer = {k: v for k, v in answer.items() if k != "nodes"}
+        # the text apart: an answer kept by the tree (``Tree.shaped``) is the same string
+        # object every time, whose hash Python keeps
+        rest = orjson.dumps({k: v for k, v in answer.items() if k != "answer"})
+        key = (answer["answer"], rest)
+        index = self._index.get(key)
+        if index is None:
+            index = self._index[key] = len(self.table)
+            self.table.append(answer)
+        return index
+
+    def to_json(self) -> dict[str, list]:
+        """The page's ``answers``."""
+        return {"at": self.at, "sets": self.sets, "table": self.table}
 
 
 def export_data(

@@ -76,7 +76,10 @@ class EmbeddedRun {
     const ev = data.events;
     this.t = ev.t; this.tick = ev.tick; this.kind = ev.kind; this.uid = ev.uid;
     this.st = ev.st; this.prev = ev.prev; this.writes = ev.writes;
-    this.answers = data.answers;          // {at: [count...], sets: [[answer...]...]}
+    // {at: [count...], sets: [{answers: [index...], current: [uid...]}...], table: [answer...]}:
+    // each distinct answer once in the table (without "nodes" when they are the set's current
+    // nodes), the sets refer to it (answersAt resolves them)
+    this.answers = data.answers;
     this.ticks = data.ticks;              // {tick: [...], start: [...], end: [...]}
     this.every = 1024;
     let maxUid = 0;
@@ -161,7 +164,11 @@ class EmbeddedRun {
   }
   answersAt(count) {
     const index = upperBound(this.answers.at, count) - 1;
-    return this.answers.sets[Math.max(0, index)];
+    const set = this.answers.sets[Math.max(0, index)];
+    const table = this.answers.table;
+    const answers = set.answers.map((i) =>
+      table[i].nodes === undefined ? { ...table[i], nodes: set.current } : table[i]);
+    return { current: set.current, answers };
   }
   events(count, before = 40) {
     const lo = Math.max(0, count - before), hi = Math.min(this.t.length, count + before);
