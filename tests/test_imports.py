@@ -12,6 +12,8 @@ from __future__ import annotations
 
 import functools
 import json
+import os
+import pty
 import subprocess
 import sys
 import tempfile
@@ -96,19 +98,29 @@ def _bare_packages() -> frozenset[str]:
         return frozenset(json.loads(out.read_text())["packages"])
 
 
-def _imports(folder: Path, *argv: str | Path) -> tuple[int, set[str], list[str]]:
+def _imports(
+    folder: Path, *argv: str | Path, terminal: bool = False
+) -> tuple[int, set[str], list[str]]:
     """(exit code, third-party packages beyond a bare interpreter's, every module) of
     ``btlog ARGV`` run in a subprocess in ``folder``, with its own cache folder there (so
-    whether a cache is warm does not depend on the other tests)."""
+    whether a cache is warm does not depend on the other tests); ``terminal``: its
+    standard error is a terminal (a pty), as a user's is."""
     out = folder / "imports.json"
-    subprocess.run(
-        [sys.executable, "-c", _RUN + _HELD, str(out), *map(str, argv)],
-        cwd=folder,
-        env=btlog_environment({"BTLOG_CACHE_DIR": str(folder / "cache")}),
-        capture_output=True,
-        check=False,
-        timeout=300,
-    )
+    leader, follower = pty.openpty() if terminal else (None, None)
+    try:
+        subprocess.run(
+            [sys.executable, "-c", _RUN + _HELD, str(out), *map(str, argv)],
+            cwd=folder,
+            env=btlog_environment({"BTLOG_CACHE_DIR": str(folder / "cache")}),
+            stdout=subprocess.DEVNULL,
+            stderr=subprocess.DEVNULL if follower is None else follower,
+            check=False,
+            timeout=300,
+        )
+    finally:
+        for descriptor in (leader, follower):
+            if descriptor is not None:
+                os.close(descriptor)
     found = json.loads(out.read_text())
     return found["code"], set(found["packages"]) - _bare_packages(), found["modules"]
 
@@ -147,7 +159,9 @@ def warm(tmp_path_factory: pytest.TempPathFactory) -> Path:
     """A folder in which the bundled recording's cache (tables and snapshots) was built:
     the commands run in it read the cache warm, as a user's second question does."""
     folder = tmp_path_factory.mktemp("warm")
-    code, _packages, _modules = _imports(folder, "ask", RECORDING, "--at", "end", "Why?")
+    code, _packages, _modules = _imports(
+        folder, "ask", RECORDING, "--at", "end", "What are you doing?"
+    )
     assert code == 0
     return folder
 
@@ -213,6 +227,15 @@ def test_warm_answers_read_without_pyarrow_or_rich(warm: Path, argv: tuple) -> N
     the read model), no rich (nothing is drawn), no tree loader, documents, executor,
     importer, viewer or fleet."""
     _check(warm, argv, READING, NOT_FOR_READING)
+
+
+def test_a_warm_ask_on_a_terminal_draws_nothing(warm: Path) -> None:
+    """On a terminal a first open shows a spinner while the cache is built; a warm one has
+    nothing to wait for, so it shows nothing and does not import rich."""
+    argv = ("ask", RECORDING, "--at", "12s", "What are you doing?")
+    code, packages, _modules = _imports(warm, *argv, terminal=True)
+    assert code == 0
+    assert packages <= READING
 
 
 @pytest.mark.parametrize(

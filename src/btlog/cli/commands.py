@@ -124,10 +124,11 @@ def run(args: Namespace) -> int:
 
 # -- questions ---------------------------------------------------------------------------
 def _open_runs(*paths: str) -> RunDatabase:
-    """Open recordings; on a terminal, say so while a first ingestion builds the cache."""
+    """Open recordings; on a terminal, say so while a first ingestion builds the cache
+    (a warm open shows nothing, and so does not import rich)."""
     from btlog.replay.database import open_runs
 
-    if sys.stderr.isatty():
+    if sys.stderr.isatty() and not _cached(paths):
         from btlog.render.terminal import make_console
 
         with make_console(stderr=True).status(
@@ -142,6 +143,17 @@ def _open_runs(*paths: str) -> RunDatabase:
         for warning in info.warnings:
             print(f"btlog: warning: {safe(warning)}", file=sys.stderr)
     return database
+
+
+def _cached(paths: tuple[str, ...]) -> bool:
+    """Whether every recording's cache is built (an unreadable one: False, and opening it
+    says why)."""
+    from btlog.replay.database import cache_location
+
+    try:
+        return all(cache_location(path).is_file() for path in paths)
+    except OSError:
+        return False
 
 
 def _open_run(path: str) -> tuple[RunDatabase, Run]:

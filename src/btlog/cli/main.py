@@ -13,7 +13,6 @@ import importlib
 import os
 import re
 import sys
-import traceback
 from collections.abc import Callable, Sequence
 from typing import NoReturn
 
@@ -366,6 +365,8 @@ def main(argv: Sequence[str] | None = None) -> int:
         return EXIT_OK
     except Exception as error:
         if os.environ.get("BTLOG_DEBUG"):
+            import traceback
+
             traceback.print_exc()
         if _is_bad_input(error):
             print(f"btlog {args.command}: {safe(one_line(error))}", file=sys.stderr)
