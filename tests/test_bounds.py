@@ -67,7 +67,7 @@ def test_a_blackboard_dump_is_read_within_an_address_space_limit(dump, command) 
         assert 'key19999 = "' + "v" * 1000 + '19999"' in result.stdout
 
 
-def test_a_wide_tree_is_read_within_an_address_space_limit(wide: Path) -> None:
+def test_a_wide_tree_is_read_within_an_address_space_limit(wide: Path, tmp_path: Path) -> None:
     with open_runs(wide, cache=False) as database:
         run = database.run()
         assert run.snapshot_every >= 20_000 * 48 // STATE_BYTES_PER_EVENT
@@ -78,9 +78,13 @@ def test_a_wide_tree_is_read_within_an_address_space_limit(wide: Path) -> None:
         ("explain",),
         ("show", "--at", "end"),
         ("timeline", "--node", "wide"),
+        ("ask", "What are you doing?"),
+        ("view", "--export", tmp_path / "wide.html"),
     ):
         result = btlog(command[0], wide, *command[1:], address_space=ADDRESS_SPACE)
         assert result.returncode == 0, (command, result.stderr)
+    page = (tmp_path / "wide.html").read_text(encoding="utf-8")
+    assert "AlwaysSuccess" in page and len(page) < 20_000 * 400, "a page linear in the tree"
 
 
 def _export_of(path: Path) -> tuple[float, int, dict]:

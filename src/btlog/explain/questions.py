@@ -183,6 +183,19 @@ def answer(
     up to that moment ``history`` holds; ``at_ns`` is the moment's time when it is later
     than the last event's (durations of running nodes are measured to it)."""
     intent, argument = parse_question(question)
+    return _answer_intent(tree, state, question, intent, argument, history, at_ns)
+
+
+def _answer_intent(
+    tree: Tree,
+    state: State,
+    question: str,
+    intent: str,
+    argument: str | None,
+    history: History | None,
+    at_ns: int | None = None,
+) -> Answer:
+    """``answer`` once the question is recognised as ``intent`` (and ``argument``)."""
     if intent in NODE_INTENTS:
         now_ns = state.t_ns if at_ns is None else max(at_ns, state.t_ns)
         return _about_node(tree, state, history, question, intent, argument or "", now_ns)
@@ -275,4 +288,7 @@ def _can(tree: Tree, nodes: list[Node], question: str, wanted: str) -> Answer:
 
 def explain(tree: Tree, state: State, history: History | None = None) -> list[Answer]:
     """Q1–Q6 together."""
-    return [answer(tree, state, QUESTIONS[intent], history) for intent in EXPLAIN_INTENTS]
+    return [
+        _answer_intent(tree, state, QUESTIONS[intent], intent, None, history)
+        for intent in EXPLAIN_INTENTS
+    ]

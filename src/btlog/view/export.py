@@ -21,12 +21,15 @@ import orjson
 from btlog.explain.hierarchy import current_nodes
 from btlog.explain.questions import QUESTIONS
 from btlog.history import LiveHistory
+from btlog.limits import MAX_NODES
 from btlog.status import STATUS_NAMES, Status
 from btlog.view.model import RunView, answers_json, question_patterns, standard_questions
 from btlog.view.page import page_html
 
-#: The most events an exported page holds (past it, the page would be too slow to open).
-MAX_EXPORT_EVENTS = 200_000
+#: The most events an exported page holds (past it, the page would be too slow to open):
+#: one tick of the widest legal tree (``MAX_NODES`` leaves under one Sequence, two changes
+#: each, and RUNNING where a leaf takes a tick) fits.
+MAX_EXPORT_EVENTS = 3 * MAX_NODES
 _CODES = {name: code for code, name in enumerate(STATUS_NAMES)}
 _KINDS = {"status": 0, "write": 1, "mutation": 2}
 
