@@ -201,14 +201,13 @@ def ask(args: Namespace) -> int:
         return EXIT_BAD_INPUT
     print(safe(result.text))
     if result.insertion is not None:
-        from btlog.render.terminal import make_console, tree_lines
+        from btlog.render.terminal import make_console, print_lines, tree_lines
 
         changed = apply_to_copy(tree, result.insertion, seq=state.seq)
         console = make_console()
         console.print("\nThe tree after this insertion (the recording is unchanged):")
         current = {n.uid for n in current_nodes(tree, state)}
-        for line in tree_lines(changed, state, current):
-            console.print(line)
+        print_lines(console, tree_lines(changed, state, current))
     return 0
 
 
@@ -282,16 +281,14 @@ def show(args: Namespace) -> int:
         return 0
     from rich.text import Text
 
-    from btlog.render.terminal import blackboard_lines, make_console, tree_lines
+    from btlog.render.terminal import blackboard_lines, make_console, print_lines, tree_lines
 
     console = make_console(args.plain)
     console.print(moment_header(moment), highlight=False)
-    for line in tree_lines(tree, state, current):
-        console.print(line)
+    print_lines(console, tree_lines(tree, state, current))
     if args.blackboard:
         console.print()
-        for line in blackboard_lines(state) or [Text(_no_blackboard(args.run))]:
-            console.print(line)
+        print_lines(console, blackboard_lines(state) or [Text(_no_blackboard(args.run))])
     return 0
 
 

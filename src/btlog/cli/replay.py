@@ -32,7 +32,7 @@ from btlog.cli.commands import moment_header, timeline_line
 from btlog.explain.hierarchy import current_nodes
 from btlog.explain.questions import UnknownQuestion, answer, explain
 from btlog.render.escape import safe
-from btlog.render.terminal import blackboard_lines, make_console, tree_lines
+from btlog.render.terminal import blackboard_lines, make_console, print_lines, tree_lines
 from btlog.replay.moments import time_moment
 
 if TYPE_CHECKING:
@@ -130,11 +130,11 @@ class Stepper:
         tree, state = self.state()
         self.header()
         current = {n.uid for n in current_nodes(tree, state)}
-        for line in tree_lines(tree, state, current):
-            self.console.print(line)
+        print_lines(self.console, tree_lines(tree, state, current))
         if self.show_blackboard:
-            for line in blackboard_lines(state) or [Text("(the blackboard is empty)")]:
-                self.console.print(line)
+            print_lines(
+                self.console, blackboard_lines(state) or [Text("(the blackboard is empty)")]
+            )
 
 
 def _typed_commands(console: Console) -> Iterator[str]:
