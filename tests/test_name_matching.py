@@ -24,7 +24,7 @@ from btlog.runner import RunConfig, execute
 from btlog.sources.builder import SourceError
 from btlog.sources.name_matching import Entry, match_names
 from btlog.state import StateProjection
-from btlog.status import IDLE
+from btlog.status import IDLE, RUNNING
 from tests.cli_support import assert_bad_input, btlog
 from tests.oracle.random_trees import generate
 from tests.rosbag2_support import HUMBLE, NAV2_LOG, write_sqlite_bag
@@ -185,3 +185,31 @@ def test_anonymous_random_trees_are_matched_or_refused_never_misread(tmp_path, s
             )
 
         assert by_tick(read) == by_tick(truth)
+
+
+def test_an_ancestor_the_log_never_names_was_running_from_its_first_entry(tmp_path: Path) -> None:
+    """A bag whose entries never name the root while the nodes under it run (as a public
+    Nav2 Galactic bag: its recorder missed the root's start, or the tree given has a
+    root the run's did not): the root is RUNNING from the first entry on, said in a
+    warning and by ``explain``, and the goal is not told as "not started"."""
+    path = NAV2 / "navigate_to_pose.xml"
+    run = record(tmp_path, "run", path)
+    root = run.tree.root
+    messages = []
+    for topic, kind, sent, message in nav2_messages([run], uids=False):
+        kept = [e for e in message["event_log"] if e["node_name"] != root.description]
+        if kept:
+            messages.append((topic, kind, sent, {**message, "event_log": kept}))
+    write_sqlite_bag(tmp_path / "bag", messages, DEFINITIONS)
+    result = btlog("import", str(tmp_path / "bag"), "--tree", str(path), "-o", "no-root.mcap",
+                   cwd=tmp_path)  # fmt: skip
+    assert result.returncode == 0, result.stderr
+    assert f"goal 1: {root.description!r}: never in the log while nodes under it" in result.stderr
+    imported = open_recording(tmp_path / "no-root.mcap")
+    first = [(e.uid, e.prev, e.status) for e in imported.transitions if e.tick == 1]
+    assert first == [(root.uid, IDLE, RUNNING)]
+    rest = [e[1:] for e in transitions(imported)[1:]]
+    assert rest == [e[1:] for e in transitions(run) if e[1] != root.uid][: len(rest)]
+    story = btlog("explain", str(tmp_path / "no-root.mcap"))
+    assert "not started" not in story.stdout.splitlines()[0], story.stdout
+    assert f"Note: {root.description!r}: never in the log" in story.stdout

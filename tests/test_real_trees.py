@@ -5,8 +5,9 @@ the counts are reported by project (skipped without the variable; never commit s
 A tree is an XML file holding ``<BehaviorTree``; a file holding only a ``<TreeNodesModel>``
 is a nodes model, given as ``--nodes-model`` to the trees of its folder and the folders
 below (the nearest one). A tree whose subtrees are defined in other files of its folder is
-registered with its folder (``--trees``), as programs that load a folder of trees do. The
-project of a file is the first two parts of its path under DIR (``navigation2/humble``).
+registered with the files that define them (``--trees``), as a program registers them
+before ``createTree``. The project of a file is the first two parts of its path under
+DIR (``navigation2/humble``).
 
 The test fails when a refusal is not one line naming the file (and line, for XML errors)
 or is not bad input (any other exception is a bug of btlog). ``BTLOG_REAL_TREES_REPORT=F``
@@ -70,26 +71,49 @@ def _project(path: Path, top: Path) -> str:
     return "/".join(parts[:2]) if len(parts) > 2 else parts[0]
 
 
-def _config(tree: Path, model: Path | None, folder: bool) -> RunConfig:
+def _config(tree: Path, model: Path | None, trees: list[Path]) -> RunConfig:
     return RunConfig(
         tree=str(tree),
         nodes_model=str(model) if model else None,
         max_ticks=MAX_TICKS,
-        trees=[str(tree.parent)] if folder else [],
+        trees=[str(t) for t in trees],
     )
+
+
+MISSING = re.compile(r"subtree '([^']+)' is not defined")
+
+
+def _defining(folder: Path, tree_id: str, skip: list[Path]) -> Path | None:
+    """The first file of ``folder`` (name order) that defines tree ``tree_id``."""
+    pattern = re.compile(rf"<BehaviorTree\s[^>]*\bID\s*=\s*[\"']{re.escape(tree_id)}[\"']")
+    for path in sorted(folder.glob("*.xml")):
+        if path not in skip and pattern.search(path.read_text(errors="replace")):
+            return path
+    return None
+
+
+def _prepared(tree: Path, model: Path | None, outcome: Outcome) -> list[Path]:
+    """The files to register with ``tree``: none, or the files of its folder defining the
+    subtrees it calls (as a program registers them before ``createTree``)."""
+    trees: list[Path] = []
+    while True:
+        try:
+            prepare(_config(tree, model, trees))
+            return trees
+        except TreeError as error:
+            missing = MISSING.search(error.problem)
+            found = missing and _defining(tree.parent, missing.group(1), [tree, *trees])
+            if not found:
+                raise
+            trees.append(found)
+            outcome.folder = True  # its subtrees are in other files of its folder
 
 
 def _try(tree: Path, model: Path | None, outcome: Outcome, scratch: Path) -> None:
     try:
-        try:
-            prepare(_config(tree, model, outcome.folder))
-        except TreeError as error:
-            if "is not defined" not in error.problem or outcome.folder:
-                raise
-            outcome.folder = True  # its subtrees are in other files of its folder
-            prepare(_config(tree, model, True))
+        trees = _prepared(tree, model, outcome)
         outcome.validated = True
-        result = execute(_config(tree, model, outcome.folder), scratch / "run.mcap")
+        result = execute(_config(tree, model, trees), scratch / "run.mcap")
         outcome.ran = True
         outcome.finished = result.final_status.completed
         outcome.halted = any("' was halted" in w for w in result.warnings)

@@ -95,16 +95,23 @@ class Source:
 def state_at_first_entry(tree: Tree, first: Mapping[int, Status]) -> dict[int, Status]:
     """The state a log began in, as far as it tells (``first``: each node's previous
     status in its first entry): that status for each node the log names; RUNNING for
-    every other ancestor of a node not IDLE (BT.CPP ticks a node only through its
-    running ancestors, and a completed one has reset its children); IDLE for the rest."""
+    every other ancestor of a node the log names (BT.CPP ticks a node only through its
+    running ancestors, and a completed one has reset its children: an ancestor the log
+    never names was RUNNING all along); IDLE for the rest."""
     state = {uid: status for uid, status in first.items() if status is not IDLE}
-    for uid in list(state):
+    for uid in list(first):
         node = tree.nodes[uid].parent
         while node is not None and node.uid not in state:
             if node.uid not in first:
                 state[node.uid] = RUNNING
             node = node.parent
     return state
+
+
+def never_named(tree: Tree, first: Mapping[int, Status], began: Mapping[int, Status]) -> str:
+    """The nodes ``state_at_first_entry`` took as RUNNING though the log never names
+    them, quoted and joined ('' when none)."""
+    return ", ".join(repr(tree.nodes[uid].name) for uid in sorted(began) if uid not in first)
 
 
 def omitted_changes(

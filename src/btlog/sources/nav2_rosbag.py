@@ -34,6 +34,7 @@ from btlog.sources.builder import (
     RecordingBuilder,
     Source,
     SourceError,
+    never_named,
     omitted_changes,
     state_at_first_entry,
     wall_start,
@@ -56,6 +57,10 @@ MID_RUN = (
     "the log begins mid-run (the recorder started after the goal did): the state at its "
     "first entry is inferred (each node's previous status in its first entry, RUNNING for "
     "their other ancestors) and recorded as the first tick"
+)
+NEVER_NAMED = (
+    "never in the log while nodes under it run, so RUNNING from the first entry on (the "
+    "recorder started after it did, or --tree has nodes the run's tree did not)"
 )
 OMITTED = (
     "changes the log leaves out were added, each at the time of the entry whose previous "
@@ -276,9 +281,12 @@ def _build(
     for entry, uid in goal.entries:
         first.setdefault(uid, entry.prev)
     began = state_at_first_entry(tree, first)
+    unnamed = never_named(tree, first, began)
+    # a log that begins mid-run infers the never-named ancestors too (MID_RUN says so)
+    mid_run = MID_RUN if any(s is not IDLE for s in first.values()) else f"{unnamed}: {NEVER_NAMED}"
     metadata = {} if goal.complete else {"incomplete": INCOMPLETE}
     if began:
-        metadata["mid_run"] = MID_RUN
+        metadata["mid_run"] = mid_run
     omitted = omitted_changes(((u, e.prev, e.status) for e, u in goal.entries), began)
     if omitted:
         metadata["omitted"] = f"{omitted} {OMITTED}"
@@ -296,7 +304,7 @@ def _build(
     try:
         if began:
             count = builder.begin_mid_run(began)
-            builder.warnings.append(f"goal {goal.index}: {MID_RUN} ({count} nodes not IDLE)")
+            builder.warnings.append(f"goal {goal.index}: {mid_run} ({count} nodes not IDLE)")
         for entry, uid in goal.entries:
             builder.logged(entry.t_ns - start, uid, entry.prev, entry.status)
     except BaseException:
