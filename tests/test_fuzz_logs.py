@@ -145,6 +145,20 @@ def test_a_damaged_mcap_bag_is_imported_with_its_intact_chunks_or_refused(damage
         assert_prefix_kept(LOGGED[:intact], kept)
 
 
+def test_a_damaged_definition_in_the_summary_is_refused_in_one_line() -> None:
+    """The first chunk damaged (its schema lost) and the summary's copy of the definition
+    damaged too ('uint32' made 'tint32'): mcap_ros2's parser prints on stderr before it
+    raises; the refusal stays one line (found by the fuzz test above)."""
+    data = bytearray(MCAP)
+    data[CHUNK_ENDS[0][0] - 100] ^= 1
+    at = data.rfind(b"uint32 nanosec")
+    data[at] ^= 1
+    damage = Damage(bytes(data), 0, f"byte {CHUNK_ENDS[0][0] - 100} ^= 1; byte {at} ^= 1")
+    _output, outcome = _import(damage, "bag.mcap", "--tree", STAND_IN)
+    assert outcome.code == 2  # type: ignore[attr-defined]
+    assert "'tint32'" in outcome.stderr  # type: ignore[attr-defined]
+
+
 @given(damage=damaged(SQLITE))
 @fuzz(examples=25, seconds=8)
 def test_a_damaged_sqlite_bag_is_imported_or_refused_in_one_line(damage: Damage) -> None:

@@ -44,6 +44,7 @@ part way is read up to the damage, with a warning. What cannot be read at all ra
 from __future__ import annotations
 
 import contextlib
+import io
 import os
 import re
 import sqlite3
@@ -151,9 +152,10 @@ class _Codec:
     def __init__(self, definition: Definition) -> None:
         from mcap_ros2._dynamic import generate_dynamic, serialize_dynamic
 
-        try:
-            decoders = generate_dynamic(definition.type, definition.text)
-            encoders = serialize_dynamic(definition.type, definition.text)
+        try:  # its parser prints what it cannot read on stderr, then raises: the error says it
+            with contextlib.redirect_stderr(io.StringIO()):
+                decoders = generate_dynamic(definition.type, definition.text)
+                encoders = serialize_dynamic(definition.type, definition.text)
             self.decode: Callable[[bytes], Any] = decoders[definition.type]
             self._encode: Callable[[Any], bytes] = encoders[definition.type]
         except Exception as error:  # a hostile definition may break the parser anywhere
