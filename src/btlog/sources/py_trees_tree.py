@@ -1,7 +1,9 @@
 """A py_trees tree as a btlog tree: each behaviour a node the explanation algorithms read.
 
 A behaviour's ``name`` is the node's name (on one line: a name broken over lines for
-py_trees' dot graphs is joined with spaces, the original kept as ``py_trees_name``).
+py_trees' dot graphs is joined with spaces, the original kept as ``py_trees_name``); a
+composite or decorator named as its class, py_trees' default name, is nameless, as a
+BT.CPP node with ``name=""`` (answers speak of what it serves, not of "sequence").
 Its type is the py_trees class name, except for the composites and decorators that have
 a BehaviorTree.CPP counterpart with the same semantics: those get that counterpart's
 type (``SEMANTICS``), so the algorithms, which know BT.CPP's control flow by type
@@ -115,6 +117,8 @@ def node_of(behaviour: Any, uid: int) -> Node:
             attributes[key] = type(value).__name__ if key == "policy" else str(value)
     given = str(behaviour.name)
     name = " ".join(given.split())  # one line: py_trees' dot graphs break names
+    if name == class_name and kind in (CONTROL, DECORATOR):
+        name = ""  # py_trees' default name: a nameless helper, as name="" in BT.CPP's XML
     if name != given:
         attributes["py_trees_name"] = given
     return Node(
