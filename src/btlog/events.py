@@ -228,6 +228,81 @@ class StatusBatch:
         return count
 
 
+class Fanout(Subscriber):
+    """Hands each batch of status changes to several subscribers that all take batches
+    (``StatusBatch``'s one taker, when there are several)."""
+
+    def __init__(self, takers: list[Subscriber]) -> None:
+        self.takers = takers
+
+    def takes_status_batches(self) -> bool:
+        """True: it is made for batches."""
+        return True
+
+    def on_status_batch(
+        self, seq: int, tick: int, t_ns: int, changes: list[bytes], times: list[int] | None
+    ) -> None:
+        """The batch to each taker in turn."""
+        for taker in self.takers:
+            taker.on_status_batch(seq, tick, t_ns, changes, times)
+
+
+class Backlog(Subscriber):
+    """Keeps a run's events, batches as batches, for a subscriber that is not fed as they
+    come (a live history built only when a question is asked): ``catch_up`` hands it
+    every event kept, in order, and forgets them. Keeping a batch is one copy of its
+    lists, so a source that batches its changes keeps batching."""
+
+    def __init__(self) -> None:
+        self.kept: list[tuple[str, tuple[Any, ...]]] = []
+
+    def takes_status_batches(self) -> bool:
+        """True: a batch is kept whole."""
+        return True
+
+    def on_status_batch(
+        self, seq: int, tick: int, t_ns: int, changes: list[bytes], times: list[int] | None
+    ) -> None:
+        """Keep a copy of the batch."""
+        kept_times = None if times is None else times.copy()
+        self.kept.append(("on_status_batch", (seq, tick, t_ns, changes.copy(), kept_times)))
+
+    def on_status(
+        self, seq: int, t_ns: int, tick: int, uid: int, prev: Status, status: Status
+    ) -> None:
+        """Keep a status change."""
+        self.kept.append(("on_status", (seq, t_ns, tick, uid, prev, status)))
+
+    def on_write(
+        self,
+        seq: int,
+        t_ns: int,
+        tick: int,
+        scope: str,
+        key: str,
+        value: Any,
+        type_name: str,
+        writer_uid: int | None,
+    ) -> None:
+        """Keep a write."""
+        self.kept.append(("on_write", (seq, t_ns, tick, scope, key, value, type_name, writer_uid)))
+
+    def on_mutation(self, mutation: TreeMutation) -> None:
+        """Keep a change of the tree."""
+        self.kept.append(("on_mutation", (mutation,)))
+
+    def on_tick(self, record: TickRecord) -> None:
+        """Keep a tick's end."""
+        self.kept.append(("on_tick", (record,)))
+
+    def catch_up(self, subscriber: Subscriber) -> None:
+        """Hand ``subscriber`` every event kept so far (a batch as its changes, unless it
+        takes batches), and forget them."""
+        kept, self.kept = self.kept, []
+        for method, args in kept:
+            getattr(subscriber, method)(*args)
+
+
 class EventLog(Subscriber):
     """A subscriber that keeps every event and tick as records, in order."""
 

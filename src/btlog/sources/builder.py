@@ -36,7 +36,9 @@ from pathlib import Path
 from typing import Any
 
 from btlog.events import (
+    CHANGE,
     INSERT,
+    Fanout,
     StatusBatch,
     Subscriber,
     TickRecord,
@@ -217,12 +219,18 @@ class RecordingBuilder:
         #: the latest time since the start a recording of this start can hold
         self._latest_t = LATEST_NS - self.recorder.start_ns
         self._subscribers: list[Subscriber] = [self.recorder, *subscribers]
-        #: transitions not yet numbered, while the recorder is the only subscriber (as
-        #: the executor batches them: ``btlog.events.StatusBatch``)
-        self._batch: StatusBatch | None = None
+        #: transitions not yet numbered, while every subscriber takes them in batches
+        #: (as the executor batches them: ``btlog.events.StatusBatch``)
+        self._batch = self._batching()
         self._rows = {uid: change_rows(uid) for uid in tree.nodes}
-        if not self._subscribers[1:] and self.recorder.takes_status_batches():
-            self._batch = StatusBatch(self.recorder, timed=True)
+
+    def _batching(self) -> StatusBatch | None:
+        """A batch for the status changes when every subscriber takes batches."""
+        subscribers = self._subscribers
+        if not all(subscriber.takes_status_batches() for subscriber in subscribers):
+            return None
+        taker = subscribers[0] if len(subscribers) == 1 else Fanout(list(subscribers))
+        return StatusBatch(taker, timed=True)
 
     def begin_mid_run(self, statuses: Mapping[int, Status]) -> int:
         """Before the first transition, for a log that begins mid-run: the state at its
@@ -249,9 +257,12 @@ class RecordingBuilder:
         self._next_tick(t_ns)
         return self._tick
 
-    def end_tick(self, t_ns: int) -> None:
-        """The current tick ended at ``t_ns``: its record is written now (events before
-        the next tick still belong to it)."""
+    def end_tick(self, t_ns: int, root_status: Status | None = None) -> None:
+        """The current tick ended at ``t_ns``, the root in ``root_status`` (when the
+        source says: see ``packed``): its record is written now (events before the next
+        tick still belong to it)."""
+        if root_status is not None:
+            self._tick_result = root_status
         self._tick_end = self._clamp(t_ns)
         self._last_t = self._tick_end
         if self._tick > 0 and not self._ended:
@@ -266,11 +277,15 @@ class RecordingBuilder:
             self.transition(t_ns, uid, prev)
         self.transition(t_ns, uid, status, prev)
 
+    def flush_batch(self) -> None:
+        """Number the batched status changes and hand them to the subscribers now."""
+        self._settle()
+
     def subscribe(self, subscriber: Subscriber) -> None:
         """Deliver every later event and tick to ``subscriber`` too."""
         self._settle()
-        self._batch = None
         self._subscribers.append(subscriber)
+        self._batch = self._batching()
 
     def _settle(self) -> None:
         """Number the batched transitions and hand them to the recorder."""
@@ -321,6 +336,34 @@ class RecordingBuilder:
             self._seq += 1
         self._transitions += 1
         self._last_t = self._last_transition_t = t_ns
+
+    def packed(self, changes: list[bytes], times: list[int]) -> None:
+        """Status changes the source packed itself (``btlog.events.CHANGE`` rows, from
+        ``change_rows``: uid, previous and new status) with their times, in order: a
+        source that knows its ticks (``explicit_ticks``) and watches every change, as
+        py_trees' recorder does. They are handed on as they are; the builder does not
+        follow them (``status_of`` and the tick's root status are then the source's:
+        ``end_tick``)."""
+        if not changes:
+            return
+        last = self._clamp(times[-1])
+        if times[0] < self._last_t:
+            floor = self._last_t
+            times = [t if t >= floor else floor for t in times]
+        batch = self._batch
+        if batch is not None:
+            batch.changes.extend(changes)
+            batch.times.extend(times)  # type: ignore[union-attr]
+        else:
+            tick, status = self._tick, self._status
+            for change, t_ns in zip(changes, times, strict=True):
+                uid, prev, new = CHANGE.unpack(change)
+                status[uid] = Status(new)
+                for subscriber in self._subscribers:
+                    subscriber.on_status(self._seq, t_ns, tick, uid, Status(prev), Status(new))
+                self._seq += 1
+        self._transitions += len(changes)
+        self._last_t = self._last_transition_t = last
 
     def write(
         self,

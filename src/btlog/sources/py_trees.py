@@ -35,7 +35,7 @@ from typing import Any
 
 from py_trees import common as pt_common
 
-from btlog.events import Subscriber, type_name
+from btlog.events import Backlog, Subscriber, change_rows, type_name
 from btlog.explain.questions import Answer, answer
 from btlog.history import LiveHistory
 from btlog.sources.builder import BuildResult, RecordingBuilder, Source
@@ -66,6 +66,13 @@ PRUNE = "prune"
 INSERT = "insert"
 
 
+def packed_rows(uid: int) -> dict[int, dict[int, bytes]]:
+    """Node ``uid``'s packed changes by the ids of its old and new py_trees status
+    (``btlog.sources.py_trees_hooks.Rows``)."""
+    rows = change_rows(uid)
+    return {id(old): {id(new): rows[STATUS[old]][STATUS[new]] for new in STATUS} for old in STATUS}
+
+
 def py_trees_version() -> str:
     """The installed py_trees' version ("" when unknown)."""
     try:
@@ -76,8 +83,15 @@ def py_trees_version() -> str:
 
 class PyTreesRecorder:
     """Records the ticks of ``tree`` (a ``py_trees.trees.BehaviourTree``) into ``path``
-    until ``close``; see the module docstring. ``answers=False`` keeps no live history
-    (``answer`` is then refused), which makes recording cheaper."""
+    until ``close``; see the module docstring.
+
+    Each change is put in a list by the behaviour itself (``py_trees_hooks``); the list
+    goes to the builder, as one batch, before anything else is recorded (a write, a
+    mutation, a tick's start or end, a question). The live history ``answer`` reads is
+    brought up to date only when a question is asked (the builder keeps the events for
+    it meanwhile: ``btlog.events.Backlog``), so a run nobody questions costs no more
+    than its recording; ``answers=False`` keeps no history at all (``answer`` is then
+    refused)."""
 
     def __init__(
         self,
@@ -95,6 +109,7 @@ class PyTreesRecorder:
         self.tree, pairs = tree_of(tree.root)
         self._clock = clock
         self._start = clock() if clock is not None else time.monotonic_ns()
+        self._start_ns = time.monotonic_ns()
         source = Source(
             "py_trees",
             f"py_trees tree {self.tree.name!r}",
@@ -110,10 +125,17 @@ class PyTreesRecorder:
             subscribers=subscribers,
             explicit_ticks=True,
         )
-        self.history: LiveHistory | None = None
+        self._history: LiveHistory | None = None
+        self._backlog: Backlog | None = None
         if answers:
-            self.history = LiveHistory(self.tree)
-            self.builder.subscribe(self.history)
+            self._history = LiveHistory(self.tree)
+            self._backlog = Backlog()
+            self.builder.subscribe(self._backlog)
+        #: the changes the behaviours made, not handed on yet
+        self._changes: list[bytes] = []
+        #: the time of the tick (of the last event outside ticks): the changes' time
+        self._tick_ns = 0
+        self._ticking = False
         self._next_uid = self.tree.next_uid
         self._hooked: dict[int, Any] = {}
         self._clients: dict[Any, int | None] = {}
@@ -139,22 +161,32 @@ class PyTreesRecorder:
     # -- hooks ---------------------------------------------------------------------------
     def _hook_all(self, pairs: list[tuple[Any, Node]]) -> None:
         for behaviour, node in pairs:
-            hook(behaviour, node.uid, self._on_status)
+            hook(behaviour, node.uid, packed_rows(node.uid), self._changes.append)
             self._hooked[node.uid] = behaviour
         self._clients.clear()
         self._unknown_clients.clear()
 
-    def _on_status(self, uid: int, old: Any, new: Any) -> None:
-        self.builder.transition(self.now_ns(), uid, STATUS.get(new, IDLE))
+    def _at(self) -> int:
+        """The time of an event now: its tick's (py_trees' clock is its ticks'), or,
+        between ticks, now."""
+        return self._tick_ns if self._ticking else self.now_ns()
+
+    def _hand_on(self) -> None:
+        """Give the builder the changes made since the last time (at ``_at``)."""
+        changes = self._changes
+        if changes:
+            self.builder.packed(changes, [self._at()] * len(changes))
+            changes.clear()
 
     def _on_blackboard(self, item: Any) -> None:
+        self._hand_on()
         writer = self._writer_of(item.client_id)
         if item.activity_type == "UNSET":
-            self.builder.write(self.now_ns(), SCOPE, item.key, None, writer, "unset")
+            self.builder.write(self._at(), SCOPE, item.key, None, writer, "unset")
             return
         value = item.current_value
         label = type_name(value)
-        self.builder.write(self.now_ns(), SCOPE, item.key, recorded_value(value), writer, label)
+        self.builder.write(self._at(), SCOPE, item.key, recorded_value(value), writer, label)
 
     def _writer_of(self, client_id: Any) -> int | None:
         """The uid of the behaviour whose blackboard client ``client_id`` is (None for a
@@ -181,13 +213,20 @@ class PyTreesRecorder:
         }
 
         def tick(*args: Any, **kwargs: Any) -> None:
-            self.builder.start_tick(self.now_ns())
+            self._hand_on()
+            self._tick_ns = self.now_ns()
+            self.builder.start_tick(self._tick_ns)
+            self._ticking = True
             try:
                 originals["tick"](*args, **kwargs)
             finally:
-                self.builder.end_tick(self.now_ns())
+                self._hand_on()
+                self._ticking = False
+                root = STATUS.get(tree.root.status, IDLE)
+                self.builder.end_tick(self.now_ns(), root)
 
         def insert_subtree(child: Any, unique_id: Any, index: int) -> bool:
+            self._hand_on()
             done = bool(originals["insert_subtree"](child, unique_id, index))
             if done:
                 self._inserted(child)
@@ -196,6 +235,7 @@ class PyTreesRecorder:
         def prune_subtree(unique_id: Any) -> bool:
             behaviour = self._find(unique_id)
             done = bool(originals["prune_subtree"](unique_id))
+            self._hand_on()
             if done and behaviour is not None:
                 self._pruned(behaviour)
             return done
@@ -203,6 +243,7 @@ class PyTreesRecorder:
         def replace_subtree(unique_id: Any, subtree: Any) -> bool:
             behaviour = self._find(unique_id)
             done = bool(originals["replace_subtree"](unique_id, subtree))
+            self._hand_on()
             if done and behaviour is not None:
                 self._pruned(behaviour)
                 self._inserted(subtree)
@@ -235,11 +276,11 @@ class PyTreesRecorder:
         self._next_uid += len(pairs)
         self.tree.insert_after(parent, after, root, self.builder.seq)
         records = [node.describe() for node in root.walk()]
-        self.builder.mutate(self.now_ns(), INSERT, parent_uid, after_uid, records)
+        self.builder.mutate(self._at(), INSERT, parent_uid, after_uid, records)
         for child, node in pairs:
             status = STATUS.get(child.status, IDLE)
             if status is not IDLE:
-                self.builder.transition(self.now_ns(), node.uid, status)
+                self.builder.transition(self._at(), node.uid, status)
         self._hook_all(pairs)
 
     def _pruned(self, behaviour: Any) -> None:
@@ -251,7 +292,7 @@ class PyTreesRecorder:
         parent = node.parent
         records = [n.describe() for n in node.walk()]
         self.builder.mutate(
-            self.now_ns(), PRUNE, parent.uid if parent is not None else uid, None, records
+            self._at(), PRUNE, parent.uid if parent is not None else uid, None, records
         )
         self.tree.remove(node)
         for removed in behaviours(behaviour):
@@ -265,7 +306,7 @@ class PyTreesRecorder:
     def answer(self, question: str, at_ns: int | None = None) -> Answer:
         """Answer ``question`` about the run so far (as post hoc at its last event, or at
         ``at_ns`` when that is later), and record the answer on ``/btlog/answers``."""
-        history = self._live()
+        history = self.live_history()
         return self.answer_about(question, history.tree, history.state, at_ns)
 
     def answer_about(
@@ -273,16 +314,30 @@ class PyTreesRecorder:
     ) -> Answer:
         """Answer ``question`` about an earlier ``state`` of the run (of ``tree``, from
         the live history's ``state_after``), and record the answer."""
-        result = answer(tree, state, question, self._live(), at_ns)
+        history = self.live_history()
+        result = answer(tree, state, question, history, at_ns)
         self.builder.recorder.on_answer(
             state.seq, state.t_ns, state.tick, question, result.intent, result.text
         )
         return result
 
-    def _live(self) -> LiveHistory:
-        if self.history is None:
+    @property
+    def history(self) -> LiveHistory | None:
+        """The live history of the run so far (brought up to date now), or None without
+        ``answers``."""
+        if self._history is None or self._backlog is None:
+            return None
+        self._hand_on()
+        self.builder.flush_batch()
+        self._backlog.catch_up(self._history)
+        return self._history
+
+    def live_history(self) -> LiveHistory:
+        """``history``, refused (``RuntimeError``) without ``answers``."""
+        history = self.history
+        if history is None:
             raise RuntimeError("this recorder keeps no live history (answers=False)")
-        return self.history
+        return history
 
     # -- the end -------------------------------------------------------------------------
     @property
@@ -294,6 +349,7 @@ class PyTreesRecorder:
         """Stop recording: the tree and blackboard are as they were, the file finished."""
         if self.result is not None:
             return self.result
+        self._hand_on()
         for name in self._patched:
             self.py_tree.__dict__.pop(name, None)
         self._patched.clear()

@@ -6,8 +6,11 @@ pre-empted lower-priority child it does not visit — so btlog watches the assig
 itself. ``hook`` gives a behaviour a subclass of its own class (same name, cached per
 class) whose ``status`` is a data descriptor with only ``__set__``: a read of
 ``status`` still finds the instance's dict at C speed, an assignment goes through
-``StatusHook.__set__``, which stores the value and reports a change (old is not new)
-to the behaviour's reporter. ``unhook`` gives the behaviour its class back.
+``StatusHook.__set__``, which stores the value and, on a change (old is not new), appends
+the change, packed, to the recorder's list: two dict look-ups by the statuses' ids (an
+enum's own hash is computed in Python) and an append, nothing numbered, timed or built
+(the changes of a tick take the tick's time). ``unhook`` gives
+the behaviour its class back.
 
 **Blackboard.** py_trees reports blackboard activity to ``Blackboard.activity_stream``
 when one is enabled. ``ActivityTap`` takes its place while recording: each write, first
@@ -23,9 +26,13 @@ from typing import Any
 
 import orjson
 from py_trees import blackboard as pt_blackboard
+from py_trees import common as pt_common
 
-#: A reporter: (uid, old status, new status), py_trees' statuses.
-Reporter = Callable[[int, Any, Any], None]
+#: Where a hooked behaviour puts a change: the append of the packed changes' list.
+Sink = Callable[[bytes], None]
+#: A behaviour's packed changes by the ids of its old and new py_trees status (an enum
+#: member is one object; its own hash is computed in Python, an int's is not).
+Rows = dict[int, dict[int, bytes]]
 
 #: Activities that change the blackboard.
 WRITES = frozenset({"WRITE", "INITIALISED", "UNSET"})
@@ -35,7 +42,8 @@ MAX_REPR = 1000
 MAX_JSON_BYTES = 64 * 1024
 
 _UID = "_btlog_uid"
-_REPORT = "_btlog_report"
+_ROWS = "_btlog_rows"
+_SINK = "_btlog_sink"
 _SUBCLASSES: dict[type, type] = {}
 
 
@@ -44,15 +52,14 @@ class StatusHook:
 
     __slots__ = ()
 
-    def __set__(self, behaviour: Any, status: Any) -> None:
-        """Store ``status`` and report it when it differs from the last one."""
+    def __set__(self, behaviour: Any, status: Any, _id: Callable[[Any], int] = id) -> None:
+        """Store ``status``; when it differs from the last one, put the change in the
+        sink."""
         slots = behaviour.__dict__
-        old = slots.get("status", status)
+        old = slots["status"]
         slots["status"] = status
         if old is not status:
-            report = slots.get(_REPORT)
-            if report is not None:
-                report(slots[_UID], old, status)
+            slots[_SINK](slots[_ROWS][_id(old)][_id(status)])
 
 
 def _subclass(cls: type) -> type:
@@ -68,13 +75,17 @@ def _subclass(cls: type) -> type:
     return hooked
 
 
-def hook(behaviour: Any, uid: int, report: Reporter) -> None:
-    """Report every later status change of ``behaviour`` as node ``uid``."""
+def hook(behaviour: Any, uid: int, rows: Rows, sink: Sink) -> None:
+    """Put every later status change of ``behaviour``, node ``uid``, in ``sink``, packed
+    as ``rows`` says."""
     cls = type(behaviour)
     if "_btlog_original" not in cls.__dict__:
         behaviour.__class__ = _subclass(cls)
-    behaviour.__dict__[_UID] = uid
-    behaviour.__dict__[_REPORT] = report
+    slots = behaviour.__dict__
+    slots.setdefault("status", pt_common.Status.INVALID)
+    slots[_UID] = uid
+    slots[_ROWS] = rows
+    slots[_SINK] = sink
 
 
 def unhook(behaviour: Any) -> None:
@@ -82,8 +93,8 @@ def unhook(behaviour: Any) -> None:
     original = type(behaviour).__dict__.get("_btlog_original")
     if original is not None:
         behaviour.__class__ = original
-    behaviour.__dict__.pop(_UID, None)
-    behaviour.__dict__.pop(_REPORT, None)
+    for key in (_UID, _ROWS, _SINK):
+        behaviour.__dict__.pop(key, None)
 
 
 def hooked_uid(behaviour: Any) -> int | None:

@@ -124,8 +124,6 @@ def record_script(
     extent = EventExtent()
     metadata = {"py_trees_factory": spec, "tick_period": repr(period), "max_ticks": str(ticks)}
     recorder = PyTreesRecorder(tree, output, metadata=metadata, clock=clock, subscribers=[extent])
-    history = recorder.history
-    assert history is not None  # answers=True
     run = ScriptRun()
     started_at = recorder.builder.recorder.metadata["started_at"]
     started_ns = parse_started_at(started_at)[0]
@@ -138,6 +136,7 @@ def record_script(
             on_answer(question, result)
 
     def ask_due(next_ns: int) -> None:
+        history = recorder.live_history()
         for question in [
             q for q in pending if q.due_after(done[0], recorder.builder.seq, next_ns, started_ns)
         ]:
@@ -159,7 +158,9 @@ def record_script(
         for question in list(pending):
             pending.remove(question)
             try:
-                tree_then, state, at_ns = at_the_end(question, extent, history, started_at)
+                tree_then, state, at_ns = at_the_end(
+                    question, extent, recorder.live_history(), started_at
+                )
             except MomentError as error:
                 run.refused.append(f"--ask {question.when}={question.question!r}: {error}")
                 continue
