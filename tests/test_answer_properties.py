@@ -1,7 +1,8 @@
 """Properties of the answers on random trees with random failures (issue 23).
 
 Random trees come from the differential test's generator, with the names of about half
-their control nodes and decorators removed (as real trees leave them unnamed). After
+their control nodes and decorators removed (as real trees leave them unnamed) and of a
+tenth made to restate their type (``root_sequence``, ``MainFallback``). After
 every event of a run, every question is asked of the live state and history, and:
 
 (a) no answer speaks of an unnamed control node or decorator in a verb slot ("I could
@@ -35,7 +36,7 @@ from btlog.explain.words import is_named, words
 from btlog.history import ANY_STATUS, LiveHistory
 from btlog.status import FAILURE, IDLE, SUCCESS
 from btlog.tree.loader import load_tree_text
-from btlog.tree.model import CONDITION, CONTROL, DECORATOR, Tree
+from btlog.tree.model import CONDITION, CONTROL, DECORATOR, Node, Tree
 from btlog.tree.registry import NodeType, Registry
 from tests.oracle.random_trees import generate
 
@@ -49,15 +50,35 @@ def _registry() -> Registry:
 
 
 def _unnamed_controls(xml: str, seed: int) -> str:
-    """The tree with the names of about half its controls and decorators removed."""
+    """The tree with the names of about half its controls and decorators removed, and of
+    a tenth replaced by names that only restate their type ("root_sequence",
+    "MainFallback": no names either)."""
     rng = random.Random(seed)
     registry = _registry()
     root = ET.fromstring(xml)
     for element in root.iter():
         known = registry.get(element.tag)
-        if known is not None and known.kind in (CONTROL, DECORATOR) and rng.random() < 0.5:
+        if known is None or known.kind not in (CONTROL, DECORATOR):
+            continue
+        draw = rng.random()
+        if draw < 0.5:
             element.attrib.pop("name", None)
+        elif draw < 0.6:
+            element.set("name", rng.choice(_restating(element.tag)))
     return ET.tostring(root, encoding="unicode")
+
+
+def _restating(type_: str) -> tuple[str, str]:
+    """Names that only restate a node's type."""
+    return f"root_{type_.lower()}", f"Main{type_}"
+
+
+def _unnamed(node: Node) -> bool:
+    """An unnamed control or decorator: one without words of its own, or, by the test's
+    own account (not ``is_named``'s), one named by ``_restating``."""
+    if node.kind not in (CONTROL, DECORATOR):
+        return False
+    return node.name in _restating(node.type) or not is_named(node)
 
 
 #: Where an answer puts what the robot does (the verb slots of the templates).
@@ -82,8 +103,8 @@ SLOTS = (
 def _forbidden(tree: Tree) -> list[re.Pattern]:
     """An unnamed control's words anywhere, an unnamed decorator's in a verb slot (those
     no named node's words contain)."""
-    spoken = {words(n) for n in tree if is_named(n) or n.is_execution}
-    unnamed = [n for n in tree if n.kind in (CONTROL, DECORATOR) and not is_named(n)]
+    unnamed = [n for n in tree if _unnamed(n)]
+    spoken = {words(n) for n in tree if (is_named(n) or n.is_execution) and n not in unnamed}
     slots = "|".join(SLOTS)
     found = []
     for node in unnamed:

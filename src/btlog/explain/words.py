@@ -171,10 +171,10 @@ def humanize(text: str, own_type: str = "") -> str:
 def restates_structure(name: str, own_type: str = "") -> bool:
     """True when ``name`` says nothing but where a node sits or what kind it is: every
     word of it is a structure word ("root", "main", "tree", "sequence", …), a word of
-    ``own_type`` or a number (``root_sequence``, ``RootSequence``, ``main_sequence``,
+    ``own_type`` or that type in lower case ("root_reactivefallback") or a number (``root_sequence``, ``RootSequence``, ``main_sequence``,
     ``MainTree``, ``Fallback2``)."""
     found = [w.lower() for part in re.split(r"\s+", name) for w in split_identifier(part)]
-    own = {w.lower() for w in split_identifier(own_type)} if own_type else set()
+    own = {w.lower() for w in [*split_identifier(own_type), own_type]} if own_type else set()
     return bool(found) and all(w in _STRUCTURE_WORDS or w in own or w.isdigit() for w in found)
 
 
