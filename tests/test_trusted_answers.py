@@ -21,7 +21,7 @@ from btlog.executor.actions import Condition, InputPort, OutputPort, StatefulAct
 from btlog.executor.engine import Executor
 from btlog.explain.questions import answer
 from btlog.explain.story import story
-from btlog.explain.words import is_named
+from btlog.explain.words import is_named, restates_structure
 from btlog.history import LiveHistory
 from btlog.record.recorder import Recorder
 from btlog.replay.database import open_runs
@@ -618,3 +618,32 @@ def test_names_that_restate_a_type_or_a_tree_id_are_no_names(tmp_path: Path) -> 
     unnamed = {n.name for n in loaded if not is_named(n)}
     assert {"root_sequence", "RootSequence", "main_sequence", "MainTree"} <= unnamed
     assert is_named(next(n for n in loaded if n.name == "get to kitchen"))
+
+
+@pytest.mark.parametrize(
+    ("name", "type_", "restates"),
+    [  # names of controls and trees in public BT.CPP and Nav2 trees
+        ("root_sequence", "Sequence", True),
+        ("RootSequence", "Sequence", True),
+        ("main_sequence", "Sequence", True),
+        ("root_selector", "Fallback", True),
+        ("MainSequence", "ReactiveSequence", True),
+        ("main_seq", "Sequence", True),
+        ("SeqNode", "Sequence", True),
+        ("Main loop", "Sequence", True),
+        ("retry", "RetryUntilSuccessful", True),
+        ("MainTree", "SubTree", True),
+        ("BehaviorTree", "", True),
+        ("Tree1", "", True),
+        ("NavigateRecovery", "RecoveryNode", False),
+        ("RecoveryFallback", "ReactiveFallback", False),
+        ("ClearingActions", "Sequence", False),
+        ("search_location", "Sequence", False),
+        ("retry grasp", "RetryUntilSuccessful", False),
+        ("FetchCoffee", "", False),
+    ],
+)
+def test_a_name_restates_its_type_only_when_it_says_nothing_else(
+    name: str, type_: str, restates: bool
+) -> None:
+    assert restates_structure(name, type_) is restates

@@ -75,7 +75,7 @@ _NOUN_PHRASE_STARTS = frozenset(
 _STRUCTURE_WORDS = frozenset(
     {"root", "main", "top", "level", "tree", "sub", "subtree", "behavior", "behaviour"}
     | {"bt", "node", "control", "decorator", "sequence", "fallback", "selector"}
-    | {"parallel", "reactive"}
+    | {"parallel", "reactive", "seq", "sel", "my", "inner", "outer", "loop"}
 )
 #: At most this many steps are named when the goal is said as the root's steps.
 MAX_GOAL_STEPS = 4
@@ -170,9 +170,10 @@ def humanize(text: str, own_type: str = "") -> str:
 
 def restates_structure(name: str, own_type: str = "") -> bool:
     """True when ``name`` says nothing but where a node sits or what kind it is: every
-    word of it is a structure word ("root", "main", "tree", "sequence", …), a word of
-    ``own_type`` or that type in lower case ("root_reactivefallback") or a number (``root_sequence``, ``RootSequence``, ``main_sequence``,
-    ``MainTree``, ``Fallback2``)."""
+    word of it is a structure word ("root", "main", "tree", "seq", …), a word of
+    ``own_type``, that type in lower case or a number (``root_sequence``,
+    ``RootSequence``, ``main_seq``, ``root_reactivefallback``, ``MainTree``,
+    ``Fallback2``)."""
     found = [w.lower() for part in re.split(r"\s+", name) for w in split_identifier(part)]
     own = {w.lower() for w in [*split_identifier(own_type), own_type]} if own_type else set()
     return bool(found) and all(w in _STRUCTURE_WORDS or w in own or w.isdigit() for w in found)
