@@ -80,13 +80,15 @@ def write_messages(
     metadata: dict[str, str],
     messages: Iterable[Message],
     compression: CompressionType = CompressionType.ZSTD,
+    chunked: bool = True,
 ) -> Path:
     """An MCAP file with btlog's channels holding ``(topic, log_time, bytes)`` messages;
     the events and ticks channels are JSON ones when ``metadata`` says schema version 2
-    (or 1), binary columns otherwise, as btlog writes them."""
+    (or 1), binary columns otherwise, as btlog writes them. Not ``chunked``: every
+    record at the top level (no CRC guards them)."""
     json_rows = metadata.get("schema_version") in ("1", "2")
     with open(target, "wb") as file:
-        writer = Writer(file, compression=compression)
+        writer = Writer(file, compression=compression, use_chunking=chunked)
         writer.start()
         channels = {}
         for topic, (name, schema, encoding) in fmt.TOPICS.items():

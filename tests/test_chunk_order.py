@@ -22,15 +22,20 @@ def original(tmp_path_factory) -> Path:
     return path
 
 
+#: The data end record (opcode 0x0F, length 4, a zero CRC) that follows the last chunk.
+DATA_END = bytes([0x0F, 4, 0, 0, 0, 0, 0, 0, 0, 0, 0, 0, 0])
+
+
 def reordered(source: Path, target: Path, order: list[int], keep_summary: bool = True) -> Path:
-    """``source`` with its chunks rewritten in ``order`` (bytes unchanged, so every CRC
-    holds); without ``keep_summary`` the file ends after its last chunk (a cut file)."""
+    """``source`` with its chunks (each with its message indexes) rewritten in ``order``
+    (bytes unchanged, so every CRC holds, the summary's included); without
+    ``keep_summary`` the file ends after its last chunk (a cut file)."""
     data = source.read_bytes()
-    found = chunks(data)
-    first, last = found[0][0], found[-1][0] + found[-1][1]
-    parts = [data[offset : offset + length] for offset, length in found]
+    starts = [offset for offset, _length in chunks(data)]
+    last = data.index(DATA_END, starts[-1])
+    parts = [data[a:b] for a, b in zip(starts, [*starts[1:], last], strict=True)]
     tail = data[last:] if keep_summary else b""
-    target.write_bytes(data[:first] + b"".join(parts[i] for i in order) + tail)
+    target.write_bytes(data[: starts[0]] + b"".join(parts[i] for i in order) + tail)
     return target
 
 

@@ -26,14 +26,24 @@ QUEUE_CALLS = 64
 _DONE = threading.Event.set
 
 
+def name_file(error: BaseException, name: str | None) -> BaseException:
+    """``error``, naming the file ``name`` if it is an OSError that names none (a full
+    disk met while writing an open file names no file)."""
+    if isinstance(error, OSError) and error.filename is None and name is not None:
+        error.filename = name
+    return error
+
+
 class BackgroundWriter:
     """Applies ``add_message``, ``flush`` and ``finish`` of ``writer`` on a thread of its
     own, in order. ``wait()`` returns once everything queued so far is done; an error
     of the writer (a full disk) is raised by the next ``wait()`` or ``stop()``, and the
-    calls after it are dropped."""
+    calls after it are dropped. An OSError of a file that it does not name is given
+    ``name``, the file being written."""
 
-    def __init__(self, writer: Writer) -> None:
+    def __init__(self, writer: Writer, name: str | None = None) -> None:
         self._writer = writer
+        self._name = name
         self._calls: queue.Queue[tuple[Callable[..., Any], tuple] | None] = queue.Queue(QUEUE_CALLS)
         self._error: BaseException | None = None
         self._thread = threading.Thread(target=self._run, name="btlog-recorder", daemon=True)
@@ -51,7 +61,7 @@ class BackgroundWriter:
             try:
                 function(*args)
             except BaseException as error:  # handed to the run's thread by wait()
-                self._error, failed = error, True
+                self._error, failed = name_file(error, self._name), True
 
     def add_message(self, channel_id: int, log_time: int, data: bytes, publish_time: int) -> None:
         """Queue ``Writer.add_message``."""

@@ -132,7 +132,7 @@ def read_metadata(path: str | os.PathLike) -> dict[str, Any]:
         for opcode, body, end in top_records(data, size, walk):
             if opcode == Opcode.METADATA:
                 found = walk.parse(opcode, data, body, end)
-                if found.name == fmt.METADATA_NAME:
+                if found is not None and found.name == fmt.METADATA_NAME:
                     record = found
                     break
     if record is None:
@@ -229,8 +229,7 @@ def open_recording(path: str | os.PathLike) -> Recording:
 
 def _assemble(name: str, contents: _Contents, walk: Walk) -> Recording:
     if contents.tree is None:
-        cut = " (the file is cut before it)" if walk.truncated else ""
-        raise RecordingError(f"{name}: not a btlog recording: no {fmt.TREE_TOPIC} message{cut}")
+        tree_of(name, None, walk)
     if contents.metadata is None:
         raise RecordingError(f"{name}: not a btlog recording: no {fmt.METADATA_NAME} metadata")
     metadata = decode_metadata(name, contents.metadata)
@@ -250,7 +249,7 @@ def _assemble(name: str, contents: _Contents, walk: Walk) -> Recording:
     return Recording(
         Path(name),
         metadata,
-        tree_of(name, contents.tree),
+        tree_of(name, contents.tree, walk),
         events,
         ticks,
         answers,
@@ -260,11 +259,21 @@ def _assemble(name: str, contents: _Contents, walk: Walk) -> Recording:
     )
 
 
-def tree_of(name: str, message: dict | None) -> Tree:
+def tree_of(name: str, message: dict | None, walk: Walk | None = None) -> Tree:
     """The tree of a recording's ``/btlog/tree`` message; RecordingError naming ``name``
-    when there is none or it is not a tree."""
+    when there is none (and why, when ``walk`` knows: damaged bytes, a cut file) or it is
+    not a tree."""
     if message is None:
-        raise RecordingError(f"{name}: not a btlog recording: no {fmt.TREE_TOPIC} message")
+        why = ""
+        if walk is not None and walk.dropped:
+            first = walk.dropped[0]
+            why = (
+                f" (damaged data at byte {first.offset}, {first.length} bytes, may have held "
+                "it; 'btlog recover' rebuilds the tree from the XML attachment)"
+            )
+        elif walk is not None and walk.truncated:
+            why = " (the file is cut before it)"
+        raise RecordingError(f"{name}: not a btlog recording: no {fmt.TREE_TOPIC} message{why}")
     try:
         return Tree.from_description(message)
     except TreeDescriptionError as error:

@@ -33,6 +33,7 @@ What the file holds and how each message is laid out is ``btlog.record.format``.
 
 from __future__ import annotations
 
+import contextlib
 import math
 import os
 import time
@@ -49,7 +50,7 @@ import btlog
 from btlog.events import Subscriber, TickRecord, TreeMutation, change_rows
 from btlog.record import columns
 from btlog.record import format as fmt
-from btlog.record.background import BackgroundWriter
+from btlog.record.background import BackgroundWriter, name_file
 from btlog.schema import schema_text
 from btlog.status import Status
 from btlog.tree.model import Tree
@@ -200,11 +201,12 @@ class Recorder(Subscriber):
             # a tick's events and its tick record.
             self._writer = Writer(self._file, chunk_size=_NEVER, compression=compression)
             self._channels = self._start(tree, attachments)
-        except BaseException:
-            self._file.close()
-            raise
+        except BaseException as error:
+            with contextlib.suppress(OSError):  # the error of the start says it
+                self._file.close()
+            raise name_file(error, self.path) from None
         #: the writer's calls from now on, run on the recorder's thread
-        self._background = BackgroundWriter(self._writer)
+        self._background = BackgroundWriter(self._writer, self.path)
         self._last_flush = self._last_tick_at = time.monotonic()
         if type(self).on_status is Recorder.on_status:  # a subclass's override wins
             self.on_status = self._status_appender()  # type: ignore[method-assign,assignment]
@@ -408,7 +410,10 @@ class Recorder(Subscriber):
                 self._background.stop()  # the writer's finish, then the thread ends
             finally:
                 self._closed = True
-                self._file.close()
+                try:
+                    self._file.close()
+                except OSError as error:
+                    raise name_file(error, self.path) from None
 
     @property
     def writer_cpu_seconds(self) -> float | None:

@@ -16,7 +16,8 @@ record's body is ``buffer[body:end]``. It is the only place btlog frames records
 Reading does not depend on the order of the chunks in the file: a finished file's
 summary (its CRC checked) gives the schemas and channels first, so a message is never
 lost for coming before its channel's record; without a sound summary (a cut file), a
-message whose channel has not been seen yet is held until its channel record comes.
+message whose channel has not been seen yet is held until its channel record comes. A
+summary whose CRC fails is not used.
 Readers order what they read by seq, not by file position.
 
 ``Walk`` collects what was noticed (``truncated``, ``warnings``, ``dropped``).
@@ -95,6 +96,8 @@ class Walk:
     dropped: list[Dropped] = field(default_factory=list)
     #: the byte offset of the chunk whose records are being walked (None: top level)
     chunk: int | None = None
+    #: True while the records walked are the summary's (after the data end record)
+    summary: bool = False
 
     def drop(self, offset: int, length: int, reason: str) -> None:
         """Note unreadable bytes, with the one warning every reader prints for them."""
@@ -104,19 +107,34 @@ class Walk:
         )
 
     def parse(self, opcode: int, buffer: Any, body: int, end: int) -> Any:
-        """``parse`` of a record this walk yielded; a record that does not parse (damaged
+        """``parse`` of a record this walk yielded. A record that does not parse (damaged
         bytes the chunk CRCs do not cover) is a ``RecordingError`` naming the file and
-        the record's byte offset."""
+        the record's byte offset; but an attachment whose CRC fails and a damaged record
+        of the summary (copies of what the data section holds) are skipped with a
+        warning (None)."""
+        where = f"at byte {body - HEAD.size}"
+        if self.chunk is not None:
+            where += f" of the chunk at byte {self.chunk}"
         try:
-            return parse(opcode, buffer, body, end)
+            record = parse(opcode, buffer, body, end)
+            if opcode == Opcode.ATTACHMENT and not _attachment_sound(buffer, body, end):
+                raise ValueError("CRC mismatch")
+            return record
         except (McapError, struct.error, ValueError, UnicodeDecodeError, OverflowError) as error:
             kind = Opcode(opcode).name.lower().replace("_", " ")
-            if self.chunk is None:
-                where = f"at byte {body - HEAD.size}"
-            else:
-                where = f"at byte {body - HEAD.size} of the chunk at byte {self.chunk}"
-            problem = str(error) or type(error).__name__
-            raise RecordingError(f"{self.path}: damaged {kind} record {where}: {problem}") from None
+            problem = "its fields overrun it" if isinstance(error, McapError) else str(error)
+            if self.summary or opcode == Opcode.ATTACHMENT:
+                self.drop(body - HEAD.size, end - body + HEAD.size, f"{kind} record: {problem}")
+                return None
+            raise RecordingError(
+                f"{self.path}: damaged {kind} record {where}: {problem or type(error).__name__}"
+            ) from None
+
+
+def _attachment_sound(buffer: Any, body: int, end: int) -> bool:
+    """False when an attachment record's CRC (of its fields before it) does not match."""
+    (crc,) = _U32.unpack_from(buffer, end - 4)
+    return not crc or zlib.crc32(buffer[body : end - 4]) == crc
 
 
 def open_mcap(path: str | os.PathLike) -> tuple[IO[bytes], int]:
@@ -185,13 +203,14 @@ def records(data: mmap.mmap | bytes, size: int, walk: Walk) -> Iterator[tuple[in
     The summary's schemas and channels come first (after the header) when the file has
     a sound summary (and the summary section is then not walked again); a message of a
     channel not yet seen is held back and comes right after its channel's record."""
-    summary = sound_summary(data, size)
+    state = _summary(data, size)
+    summary = state if isinstance(state, tuple) else None
     known: set[int] = set()
     held: dict[int, list[bytes]] = {}
     primed = summary is None
     in_summary = False
     for opcode, buffer, body, end in _file_records(data, size, walk):
-        if in_summary:  # given already, first
+        if in_summary:  # given already, first (or damaged: not used)
             continue
         if not primed:  # the summary's schemas and channels, after the header
             primed = True
@@ -203,7 +222,13 @@ def records(data: mmap.mmap | bytes, size: int, walk: Walk) -> Iterator[tuple[in
                 yield found[0], data, found[1], found[2]
             if opcode == Opcode.HEADER:
                 continue
-        in_summary = opcode == Opcode.DATA_END and summary is not None
+        in_summary = opcode == Opcode.DATA_END and state is not False
+        if in_summary and state is True:
+            walk.warnings.append(
+                f"{walk.path}: the summary after byte {body - HEAD.size} fails its CRC; "
+                "read without it"
+            )
+        walk.summary = walk.summary or opcode == Opcode.DATA_END
         if end - body >= 2 and opcode in (Opcode.MESSAGE, Opcode.CHANNEL):
             (channel,) = _U16.unpack_from(buffer, body)
             if opcode == Opcode.MESSAGE and channel not in known:
@@ -247,16 +272,23 @@ def _file_records(
 def sound_summary(data: mmap.mmap | bytes, size: int) -> tuple[int, int] | None:
     """``(start, end)`` of the file's summary section when the file ends with a footer
     whose summary CRC checks out (a summary without CRC is not trusted); else None."""
+    summary = _summary(data, size)
+    return summary if isinstance(summary, tuple) else None
+
+
+def _summary(data: mmap.mmap | bytes, size: int) -> tuple[int, int] | bool:
+    """``(start, end)`` of a sound summary; True when the footer names a summary whose
+    CRC fails (damaged: not to be used); False when there is none to check."""
     footer = size - len(MAGIC) - _FOOTER.size
     if footer < len(MAGIC) or data[size - len(MAGIC) : size] != MAGIC:
-        return None
+        return False
     opcode, length, start, offsets, crc = _FOOTER.unpack_from(data, footer)
     if opcode != Opcode.FOOTER or length != _FOOTER.size - HEAD.size or not crc:
-        return None
+        return False
     if not len(MAGIC) <= start < footer:
-        return None
+        return start != 0  # 0: a file without summary
     if zlib.crc32(data[start : footer + _FOOTER.size - 4]) != crc:
-        return None
+        return True
     end = offsets if start <= offsets <= footer else footer
     return start, end
 

@@ -102,7 +102,7 @@ def load_tables(
     try:
         collected = _load_rows(con, run_id, name)
         metadata = decode_metadata(name, collected.metadata or {})
-        tree_of(name, collected.tree)  # refuses a file without a tree
+        tree_of(name, collected.tree, collected.walk)  # refuses a file without a tree
         tree = collected.tree or {}
         insert_small_tables(con, run_id, collected)
         extent = extent_of(con, run_id)

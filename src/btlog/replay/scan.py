@@ -147,10 +147,12 @@ class McapScan:
                     self.on_batch(self.batch)
                     self.batch = RowBatch()
             elif opcode == channel:
-                self._channel(self.out.walk.parse(opcode, buffer, body, end))
+                found = self.out.walk.parse(opcode, buffer, body, end)
+                if found is not None:
+                    self._channel(found)
             elif opcode == metadata and self.out.metadata is None:
                 record = self.out.walk.parse(opcode, buffer, body, end)
-                if record.name == fmt.METADATA_NAME:
+                if record is not None and record.name == fmt.METADATA_NAME:
                     self.out.metadata = record.metadata
 
     def _events(self, buffer: bytes, start: int, end: int) -> None:
