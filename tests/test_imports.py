@@ -65,7 +65,7 @@ NOT_FOR_READING = (
     "btlog.replay.load",
     "btlog.replay.scan",
     "btlog.record.recorder",
-    "btlog.record.recover",
+    "btlog.record.recovery",
     "btlog.tree.loader",
     "btlog.tree.builder",
     "btlog.documents",

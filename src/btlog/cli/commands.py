@@ -405,7 +405,7 @@ def sql(args: Namespace) -> int:
 # -- files -------------------------------------------------------------------------------
 def recover(args: Namespace) -> int:
     """``btlog recover``: rewrite a truncated recording into a valid one."""
-    from btlog.record.recover import recover as salvage
+    from btlog.record.recovery import recover as salvage
 
     refuse_overwrite(args.output, [args.broken])
     report = salvage(args.broken, args.output)

@@ -28,7 +28,7 @@ if TYPE_CHECKING:
         read_metadata,
     )
     from btlog.record.recorder import Recorder
-    from btlog.record.recover import RecoveryReport, recover
+    from btlog.record.recovery import RecoveryReport, recover
     from btlog.schema import schema_text
 
 #: Where each public name lives: imported on first use, so reading a cache (which needs
@@ -41,8 +41,8 @@ _HOMES = {
     "open_recording": "btlog.record.reader",
     "read_metadata": "btlog.record.reader",
     "Recorder": "btlog.record.recorder",
-    "RecoveryReport": "btlog.record.recover",
-    "recover": "btlog.record.recover",
+    "RecoveryReport": "btlog.record.recovery",
+    "recover": "btlog.record.recovery",
     "schema_text": "btlog.schema",
 }
 
