@@ -11,9 +11,11 @@ from __future__ import annotations
 
 from pathlib import Path
 
+import pytest
 from hypothesis import given
 from hypothesis import strategies as st
 
+from btlog.replay import snapshots
 from btlog.replay.blocks import EventBatch
 from btlog.replay.database import open_runs
 from btlog.replay.snapshots import load_snapshot, snapshot_rows
@@ -104,3 +106,53 @@ def test_event_blocks_hold_status_changes_in_seq_order_whatever_the_row_order(
     seqs = [seq for block in blocks for seq in block.seq]
     assert seqs == sorted(seqs) and len(seqs) > 16
     assert all(seq // 8 == i for i, block in enumerate(blocks) for seq in block.seq)
+
+
+@PROPERTY
+@given(
+    scripts=scripts_for(KITTING),
+    every=st.integers(1, 5),
+    blocks=st.integers(1, 7),
+    mutate_at=st.one_of(st.none(), st.integers(2, 40)),
+)
+def test_snapshots_built_a_segment_at_a_time_equal_the_fold(
+    tmp_path_factory, scripts: dict, every: int, blocks: int, mutate_at: int | None
+) -> None:
+    """Segments of a few snapshots each (issue 27): what holds at a segment's first
+    boundary comes from the events before it, blackboard entries and retry counts too."""
+    path: Path = tmp_path_factory.mktemp("seg") / "run.mcap"
+    outcomes = {"default": {"status": "SUCCESS", "ticks": 1}, "nodes": scripts}
+    live = record(path, KITTING, outcomes, max_ticks=60, mutate_at=mutate_at)
+    with pytest.MonkeyPatch.context() as patch:
+        patch.setattr(snapshots, "SEGMENT_BLOCKS", blocks)
+        assert_snapshots_equal_the_fold(path, live.states, every)
+
+
+def test_a_first_answer_early_builds_only_the_snapshots_it_needs(tmp_path: Path) -> None:
+    """A state at an early moment builds the snapshots of its segment only (one file
+    beside the cache); a later moment builds its own; the states equal those of a run
+    read into memory (all snapshots), for moments given as seqs, times and ticks."""
+    path = tmp_path / "run.mcap"
+    scripts = {"trial and error insert": ["FAILURE", "FAILURE", "SUCCESS"]}
+    live = record(path, KITTING, {"default": DEFAULT, "nodes": scripts}, max_ticks=60)
+    cache_dir = tmp_path / "cache"
+    with pytest.MonkeyPatch.context() as patch:
+        patch.setattr(snapshots, "SEGMENT_BLOCKS", 4)
+        with open_runs(path, cache_dir=cache_dir, snapshot_every=4) as database:
+            run = database.run()
+            assert not list(cache_dir.glob("*.snapshots.duckdb"))
+            assert canonical(run.state_at("seq:3")[1]) == live.states[3]
+            built = sorted(p.name for p in cache_dir.glob("*.snapshots.duckdb"))
+            assert len(built) == 1 and built[0].endswith(".0.snapshots.duckdb")
+            last = len(live.states)
+            assert canonical(run.state_at("end")[1]) == live.states[last - 1]
+            assert len(list(cache_dir.glob("*.snapshots.duckdb"))) == 2
+            segments = snapshots.segments(last, 4)
+            assert segments > 2  # the segments between were never built
+            moments = ["0.35s", "2.05s", "tick:7", "tick:31", "seq:40", "-1s"]
+            cached = [canonical(run.state_at(m)[1]) for m in moments]
+            keys = [run.resolve(m).to_json() for m in moments]
+        with open_runs(path, cache=False, snapshot_every=4) as database:
+            run = database.run()
+            assert [canonical(run.state_at(m)[1]) for m in moments] == cached
+            assert [run.resolve(m).to_json() for m in moments] == keys

@@ -138,6 +138,13 @@ class Queries:
         found = self.select("count", uids, statuses, lo, hi, starts, 0)
         return found if isinstance(found, int) else len(found)
 
+    def counts(
+        self, uids: Collection[int], statuses: Statuses, lo: int, hi: int, starts: bool = False
+    ) -> dict[int, int]:
+        """``count`` for each node of ``uids`` on its own (a backend may answer them all
+        in one pass: the story counts the runs of every subgoal over the whole run)."""
+        return {uid: self.count([uid], statuses, lo, hi, starts) for uid in uids}
+
 
 class History(Queries):
     """What the explanations may ask about a run's past (see the module docstring): the

@@ -114,7 +114,7 @@ def recording_of(path: Path) -> str | None:
     from btlog.replay import cache
 
     if path.name.endswith(cache.SNAPSHOTS_SUFFIX):
-        path = path.with_name(path.name.removesuffix(cache.SNAPSHOTS_SUFFIX) + cache.SUFFIX)
+        path = cache.tables_path(path)
         found = recording_of(path) if path.exists() else None
         return None if found is None else f"{found} (snapshots)"
     try:

@@ -266,8 +266,9 @@ def goal_runs(tree: Tree, state: State, history: History, limit: int = 10_000) -
     return runs
 
 
-def _subgoal(node: Node, lo: int, now: int, history: History) -> Subgoal:
-    starts = history.count([node.uid], ANY_STATUS, lo, now, starts=True)
+def _subgoal(node: Node, lo: int, now: int, history: History, starts: int) -> Subgoal:
+    """The subgoal ``node`` in events ``lo <= seq < now``, which it started ``starts``
+    times."""
     first = history.first([node.uid], ANY_STATUS, lo, now, starts=True)
     done = history.last([node.uid], COMPLETIONS, lo, now)
     last_start = (
@@ -445,6 +446,8 @@ def story(
         last_start = history.last([tree.root.uid], ANY_STATUS, 0, now, starts=True)
         since = 0 if last_start is None else last_start.seq
     episodes, failures, found = _episodes(tree, state, history)
+    goals = subgoals(tree)
+    runs_of = history.counts([n.uid for n in goals], ANY_STATUS, since, now, starts=True)
     return Story(
         goal=goal_words(tree),
         outcome=outcome,
@@ -454,7 +457,7 @@ def story(
         events=state.seq,
         failures=failures,
         episodes=episodes,
-        subgoals=[_subgoal(n, since, now, history) for n in subgoals(tree)],
+        subgoals=[_subgoal(n, since, now, history, runs_of[n.uid]) for n in goals],
         runs=runs,
         guards=found.guards,
         examined_all=found.examined_all,

@@ -191,6 +191,13 @@ def pack_ticks(rows: list, teardown: bool = False) -> bytes:
     return HEAD.pack(TICKS_MAGIC, count, 0, TEARDOWN if teardown else 0, last) + body
 
 
+#: The bytes of one row of each column, by message magic (``locate`` runs once a message).
+_WIDTHS = {
+    EVENTS_MAGIC: tuple(struct.calcsize(code) for _name, code in EVENT_COLUMNS),
+    TICKS_MAGIC: tuple(struct.calcsize(code) for _name, code in TICK_COLUMNS),
+}
+
+
 @dataclass(frozen=True)
 class Message:
     """Where the parts of one binary message are: ``columns`` holds ``(start, end)`` of
@@ -210,17 +217,14 @@ def locate(buffer: bytes | memoryview, start: int, end: int) -> Message:
     if end - start < HEAD.size:
         raise ValueError(f"a binary message of {end - start} bytes is shorter than its head")
     magic, count, written, flags, tick = HEAD.unpack_from(buffer, start)
-    if magic == EVENTS_MAGIC:
-        layout = EVENT_COLUMNS
-    elif magic == TICKS_MAGIC:
-        layout = TICK_COLUMNS
-    else:
+    widths = _WIDTHS.get(magic)
+    if widths is None:
         raise ValueError(f"a binary message starts with {bytes(magic)!r}, not a btlog magic")
     columns, position = [], start + HEAD.size
-    for _name, code in layout:
-        width = struct.calcsize(code) * count
-        columns.append((position, position + width))
-        position += width
+    for width in widths:
+        stop = position + width * count
+        columns.append((position, stop))
+        position = stop
     if position + written != end:
         raise ValueError(
             f"a {magic.decode()} message of {count} rows and {written} bytes of writes "

@@ -168,9 +168,10 @@ _BLOCK_HEAD = struct.Struct("<Q")
 
 
 def event_blocks(
-    con: duckdb.DuckDBPyConnection, run_id: str, every: int, count: int
+    con: duckdb.DuckDBPyConnection, run_id: str, every: int, count: int, first: int = 0
 ) -> list[bytes]:
-    """The ``events`` of the ``count`` snapshot rows, zstd-compressed: the count of status
+    """The ``events`` of the ``count`` snapshot rows from snapshot ``first`` on (the rows
+    of one segment: only its events are read), zstd-compressed: the count of status
     changes (8 bytes), the status changes as fixed-width columns (``_BLOCK_COLUMNS``,
     native byte order), then the writes as a JSON list. The columns are cut from one
     Arrow read of ``transitions`` (in seq order, as the rows are stored, or sorted), the
@@ -178,9 +179,12 @@ def event_blocks(
     import pyarrow.compute as pa_compute
 
     columns = ", ".join(f"{sql} AS {name}" for name, sql, _code in _BLOCK_COLUMNS)
-    params = {"run_id": run_id, "k": every}
+    start, stop = first * every, (first + count) * every
+    params = {"run_id": run_id, "k": every, "lo": start, "hi": stop}
+    within = "run_id = $run_id AND seq >= $lo AND seq < $hi"
     rows = con.sql(
-        f"SELECT {columns} FROM transitions WHERE run_id = $run_id", params={"run_id": run_id}
+        f"SELECT {columns} FROM transitions WHERE {within}",
+        params={"run_id": run_id, "lo": start, "hi": stop},
     ).to_arrow_table()
     seqs = rows["seq"]
     if (
@@ -190,7 +194,7 @@ def event_blocks(
         rows = rows.sort_by("seq")  # rows are stored in seq order unless a file was not
     counts = dict(
         con.execute(
-            "SELECT seq // $k, count(*) FROM transitions WHERE run_id = $run_id GROUP BY ALL",
+            f"SELECT seq // $k, count(*) FROM transitions WHERE {within} GROUP BY ALL",
             params,
         ).fetchall()
     )
@@ -202,10 +206,10 @@ def event_blocks(
         view = memoryview(b"") if values is None else memoryview(values)
         buffers.append((view[array.offset * width :], width))
     compressor = zstandard.ZstdCompressor(level=1)
-    writes = _write_rows(con, run_id, every)
+    writes = _write_rows(con, params)
     pending = next(writes, None)
     blocks, lo = [], 0
-    for index in range(count):
+    for index in range(first, first + count):
         hi = lo + counts.get(index, 0)
         parts: list[bytes | memoryview] = [_BLOCK_HEAD.pack(hi - lo)]
         parts.extend(buffer[lo * width : hi * width] for buffer, width in buffers)
@@ -224,21 +228,22 @@ _WRITE_ROWS_PER_BATCH = 4096
 
 
 def _write_rows(
-    con: duckdb.DuckDBPyConnection, run_id: str, every: int
+    con: duckdb.DuckDBPyConnection, params: dict
 ) -> Iterator[tuple[int, list[bytes | memoryview]]]:
     """(block index, the block's write rows as the parts of one JSON list) for each block
-    with writes, in order. DuckDB writes each row's JSON, preceded by a comma and a
-    newline (so a long block can be parsed a row at a time), and the rows are streamed
-    in small batches: a block's parts are slices of the batches'
-    string buffers, never one string of the whole block."""
+    with writes in ``$lo <= seq < $hi`` (``params``: those, ``run_id`` and ``k``), in
+    order. DuckDB writes each row's JSON, preceded by a comma and a newline (so a long
+    block can be parsed a row at a time), and the rows are streamed in small batches: a
+    block's parts are slices of the batches' string buffers, never one string of the
+    whole block."""
     import pyarrow as pa
     import pyarrow.compute as pa_compute
 
     reader = con.sql(
         """SELECT seq // $k AS block, ',' || chr(10) || json_array(seq, t_ns, tick, scope, key,
             value, type, writer_uid)::VARCHAR AS row
-        FROM blackboard WHERE run_id = $run_id ORDER BY seq""",
-        params={"run_id": run_id, "k": every},
+        FROM blackboard WHERE run_id = $run_id AND seq >= $lo AND seq < $hi ORDER BY seq""",
+        params=params,
     ).to_arrow_reader(_WRITE_ROWS_PER_BATCH)
     current: int | None = None
     parts: list[bytes | memoryview] = []

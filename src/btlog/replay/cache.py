@@ -20,8 +20,10 @@ is built under a temporary name holding the builder's pid and moved into place w
 complete; the leftovers of a killed build (its pid gone) are removed on the next open.
 Using a cache touches its mtime, and after a build the least recently used caches are
 evicted until the folder is under its size cap (``$BTLOG_CACHE_MAX_MB``, default 2048).
-A cache holds the tables; the snapshots, which only states need, are built on the first
-state asked for, into a second file beside it (``NAME.snapshots.duckdb``).
+A cache holds the tables; the snapshots, which only states need, are built a segment at
+a time (``btlog.replay.snapshots.SEGMENT_BLOCKS`` snapshots) on the first state asked for
+in the segment's range, each into a file beside it (``NAME.N.snapshots.duckdb``): a
+first answer about one moment of a long run does not wait for the whole run's.
 """
 
 from __future__ import annotations
@@ -43,8 +45,9 @@ if TYPE_CHECKING:  # ingestion (and pyarrow) is imported to build a cache, not t
     from btlog.replay import ingest as ingestion
 
 SUFFIX = ".duckdb"
-#: The snapshots of a cache ``NAME.duckdb`` are in ``NAME.snapshots.duckdb``.
+#: The snapshots of segment N of a cache ``NAME.duckdb`` are in ``NAME.N.snapshots.duckdb``.
 SNAPSHOTS_SUFFIX = ".snapshots" + SUFFIX
+_SEGMENT = re.compile(r"\.\d+$")
 #: The default size cap of the cache folder, in MB (``$BTLOG_CACHE_MAX_MB`` overrides).
 DEFAULT_MAX_MB = 2048
 #: Recordings smaller than this get a cache of 16 KiB blocks instead of DuckDB's 256 KiB:
@@ -250,16 +253,22 @@ def build(path: str, cache: Path, snapshot_every: int) -> ingestion.IngestReport
     return report
 
 
-def snapshots_path(cache: Path) -> Path:
-    """Where the snapshots of the cache ``cache`` live: a file beside it, built on the
-    first state asked for (``build_snapshots``)."""
-    return cache.with_name(cache.name.removesuffix(SUFFIX) + SNAPSHOTS_SUFFIX)
+def snapshots_path(cache: Path, segment: int) -> Path:
+    """Where the snapshots of segment ``segment`` of the cache ``cache`` live: a file
+    beside it, built on the first state asked for in its range (``build_snapshots``)."""
+    return cache.with_name(f"{cache.name.removesuffix(SUFFIX)}.{segment}{SNAPSHOTS_SUFFIX}")
 
 
-def build_snapshots(cache: Path, target: Path) -> float:
-    """Build the snapshots of the run cached in ``cache`` into a new file ``target``
-    (moved into place when complete); returns the seconds taken. The cache itself is
-    only read (other processes may have it open)."""
+def tables_path(snapshots: Path) -> Path:
+    """The cache whose snapshots file is ``snapshots`` (``snapshots_path``'s inverse)."""
+    stem = _SEGMENT.sub("", snapshots.name.removesuffix(SNAPSHOTS_SUFFIX))
+    return snapshots.with_name(stem + SUFFIX)
+
+
+def build_snapshots(cache: Path, target: Path, segment: int) -> float:
+    """Build the snapshots of segment ``segment`` of the run cached in ``cache`` into a
+    new file ``target`` (moved into place when complete); returns the seconds taken. The
+    cache itself is only read (other processes may have it open)."""
     from btlog.replay import ingest as ingestion
 
     temporary = _temporary(target)
@@ -269,7 +278,9 @@ def build_snapshots(cache: Path, target: Path) -> float:
         con.execute("ATTACH $path AS cached (READ_ONLY)", {"path": str(cache)})
         con.execute(f"ATTACH $path AS snapshot_file{_blocks(small)}", {"path": str(temporary)})
         con.execute("CREATE TABLE snapshot_file._snapshots AS FROM cached._snapshots LIMIT 0")
-        _rows, seconds = ingestion.snapshots_into(con, "snapshot_file._snapshots", "cached")
+        _rows, seconds = ingestion.snapshots_into(
+            con, "snapshot_file._snapshots", "cached", segment=segment
+        )
         con.execute("DETACH snapshot_file")
         os.replace(temporary, target)
     finally:

@@ -7,10 +7,12 @@ so under a 3 GB limit an allocation fails (or a thread cannot start) long before
 thinks of spilling — and a temporary folder ``.tmp`` in the current folder, which stays
 readable to SQL once external access is turned off (DuckDB allows its temp folder).
 
-``connect`` gives DuckDB a memory limit of half of what the address-space limit leaves
-when there is one, and either no temporary folder at all (``sandbox``: the connection
-that runs users' SQL) or a private one in the system's temporary folder, which DuckDB
-creates when it first spills and removes when the connection closes.
+``connect`` gives DuckDB a memory limit of ``MEMORY_LIMIT`` (1 GiB), or half of what the
+address-space limit leaves when that is less, whatever the run's length (issue 27: the
+default let one first answer on a 100M-event run take 9.8 GB), and either no temporary
+folder at all (``sandbox``: the connection that runs users' SQL) or a private one in the
+system's temporary folder, which DuckDB creates when it first spills and removes when
+the connection closes.
 """
 
 from __future__ import annotations
@@ -23,6 +25,10 @@ import uuid
 
 import duckdb
 
+#: What DuckDB may use at most (its buffers: what it holds beyond that spills to the
+#: temporary folder, or fails in a ``sandbox`` connection, which has none), so that a
+#: command stays within about 2 GB of resident memory whatever the run's length.
+MEMORY_LIMIT = 1 << 30
 #: DuckDB is never given less than this, even when the address space is nearly used up.
 MIN_MEMORY_LIMIT = 64 << 20
 #: The share of the address space left free that DuckDB may use (the rest is for
@@ -30,14 +36,15 @@ MIN_MEMORY_LIMIT = 64 << 20
 ADDRESS_SPACE_SHARE = 0.5
 
 
-def memory_limit() -> int | None:
-    """The bytes each DuckDB connection of this process may use: ``ADDRESS_SPACE_SHARE``
-    of what the address-space limit left when btlog first asked (before any connection
-    reserved its share), or None when the process has no such limit."""
+def memory_limit() -> int:
+    """The bytes each DuckDB connection of this process may use: ``MEMORY_LIMIT``, or
+    ``ADDRESS_SPACE_SHARE`` of what the address-space limit left when btlog first asked
+    (before any connection reserved its share) when that is less."""
     soft, _hard = resource.getrlimit(resource.RLIMIT_AS)
     if soft == resource.RLIM_INFINITY:
-        return None
-    return max(MIN_MEMORY_LIMIT, int((soft - _first_address_space_used()) * ADDRESS_SPACE_SHARE))
+        return MEMORY_LIMIT
+    share = int((soft - _first_address_space_used()) * ADDRESS_SPACE_SHARE)
+    return min(MEMORY_LIMIT, max(MIN_MEMORY_LIMIT, share))
 
 
 @functools.cache
@@ -63,11 +70,9 @@ def connect(database: str = ":memory:", sandbox: bool = False) -> duckdb.DuckDBP
     for one that will run users' SQL (no temporary folder: nothing spills, nothing is
     readable)."""
     config: dict[str, str | bool | int | float | list[str]] = {
-        "temp_directory": "" if sandbox else _private_temp_directory()
+        "temp_directory": "" if sandbox else _private_temp_directory(),
+        "memory_limit": f"{memory_limit() // (1 << 20)}MiB",
     }
-    limit = memory_limit()
-    if limit is not None:
-        config["memory_limit"] = f"{limit // (1 << 20)}MiB"
     return duckdb.connect(database, config=config)
 
 

@@ -155,11 +155,13 @@ class RunDatabase:
         self._caches[catalog] = place
         cache.evict(root, cache.max_bytes(), self._attached)
 
-    def snapshots_of(self, catalog: str) -> str:
-        """The qualified name of the ``_snapshots`` table of the run in ``catalog``,
-        built on first use: into the run's own catalog for a run read into memory, else
-        into a file beside its cache (``cache.snapshots_path``), attached read-only; in
-        memory when that file cannot be written."""
+    def snapshots_of(self, catalog: str, segment: int) -> str:
+        """The qualified name of the ``_snapshots`` table holding segment ``segment`` of
+        the snapshots of the run in ``catalog`` (``btlog.replay.snapshots.segment_of``),
+        built on first use: every segment at once into the run's own catalog for a run
+        read into memory, else the segment into a file beside its cache
+        (``cache.snapshots_path``), attached read-only; in memory when that file cannot
+        be written."""
         place = self._caches.get(catalog)
         if place is None:
             table = f"{catalog}._snapshots"
@@ -168,11 +170,11 @@ class RunDatabase:
 
                 ingestion.snapshots_into(self.con, table, catalog)
             return table
-        name = f"{catalog}_snapshots"
-        target = cache.snapshots_path(place)
+        name = f"{catalog}_snapshots{segment}"
+        target = cache.snapshots_path(place, segment)
         if not self._attach_snapshots(target, name):
             try:
-                cache.build_snapshots(place, target)
+                cache.build_snapshots(place, target, segment)
             except (OSError, duckdb.IOException) as error:
                 reason = getattr(error, "strerror", None) or one_line(error)
                 self.notices.append(
@@ -185,7 +187,7 @@ class RunDatabase:
                 )
                 from btlog.replay import ingest as ingestion
 
-                ingestion.snapshots_into(self.con, f"{name}._snapshots", catalog)
+                ingestion.snapshots_into(self.con, f"{name}._snapshots", catalog, segment=segment)
                 return f"{name}._snapshots"
             if not self._attach_snapshots(target, name):
                 raise ReplayError(f"{target}: cannot read the snapshots just built")

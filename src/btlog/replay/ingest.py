@@ -148,10 +148,12 @@ def snapshots_into(
     target: str,
     catalog: str | None = None,
     run_id: str | None = None,
+    segment: int | None = None,
 ) -> tuple[int, float]:
     """Build the snapshots of run ``run_id`` (default: the only one) whose tables are in
     ``catalog`` (default: the current one; it may be read-only) into the table ``target``
-    (``_snapshots``, or ``other_catalog._snapshots``); (rows, seconds)."""
+    (``_snapshots``, or ``other_catalog._snapshots``): those of ``segment``
+    (``btlog.replay.snapshots.segment_of``), or all of them; (rows, seconds)."""
     started = time.perf_counter()
     (before,) = one_row(con, "SELECT current_database()")
     if catalog is not None:
@@ -164,7 +166,7 @@ def snapshots_into(
             {} if run_id is None else {"run_id": run_id},
         )
         stored = build_snapshots(
-            con, run_id, Tree.from_description(orjson.loads(tree)), events, every, target
+            con, run_id, Tree.from_description(orjson.loads(tree)), events, every, target, segment
         )
     finally:
         if catalog is not None:

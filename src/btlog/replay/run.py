@@ -3,8 +3,11 @@
 **The state at a moment.** ``Run.state_at(moment)`` resolves the moment to a number of
 events (``btlog.replay.moments``) and reads one row of ``_snapshots``: the state every
 ``snapshot_every`` events together with the block of events up to the next snapshot. The
-snapshots are built on the first state asked for (a question in SQL needs only the
-tables), into a file beside the run's cache (``Run.snapshots_table``). It folds only the
+snapshots are built a segment at a time, on the first state asked for in the segment's
+range (a question in SQL needs only the tables), into a file beside the run's cache
+(``Run.snapshots_table``): a first answer at the end of a long run builds the last
+segment, not the whole run's. A time or tick is found by a binary search over the
+blocks' first events, read from the tables. It folds only the
 events of that block up to the moment with ``StateProjection`` — never the run from its
 start — so every moment of a long run costs the same: one point query and at most
 ``snapshot_every`` events. Times and ticks are resolved from the same rows (each knows
@@ -42,7 +45,7 @@ from btlog.replay.moments import (
     parse_started_at,
     resolve_moment,
 )
-from btlog.replay.snapshots import load_mutations, load_snapshot
+from btlog.replay.snapshots import load_mutations, load_snapshot, segment_of, segments
 from btlog.replay.sql_history import SqlHistory
 from btlog.replay.tables import only_row
 from btlog.state import State, StateProjection
@@ -100,8 +103,9 @@ class Database(Protocol):
 
     con: duckdb.DuckDBPyConnection
 
-    def snapshots_of(self, catalog: str) -> str:
-        """The qualified name of the ``_snapshots`` table of the run in ``catalog``."""
+    def snapshots_of(self, catalog: str, segment: int) -> str:
+        """The qualified name of the ``_snapshots`` table holding segment ``segment`` of
+        the snapshots of the run in ``catalog``."""
         ...
 
 
@@ -130,9 +134,10 @@ class Run:
         self.mutations = load_mutations(self.con, self._stored_id, self._prefix)
         self.info = self._info(path, events, last_tick, truncated, orjson.loads(warnings))
         self._database = database
-        self._snapshots: str | None = None
-        #: time and tick of the first event of each block (past the end for an empty one)
-        self._keys: dict[str, list[int]] | None = None
+        #: the ``_snapshots`` table of each segment built or attached so far
+        self._snapshots: dict[int, str] = {}
+        #: time and tick of the first event of the blocks looked at (``_FirstKeys``)
+        self._keys = {"t_ns": _FirstKeys(self, 0), "tick": _FirstKeys(self, 1)}
         self._blocks: OrderedDict[int, tuple[dict, EventBatch]] = OrderedDict()
         started_ns, zone = parse_started_at(self.info.metadata.get("started_at"))
         self.extent = RunExtent(
@@ -188,27 +193,37 @@ class Run:
         return SqlHistory(self)
 
     # -- snapshot blocks -----------------------------------------------------------------
-    def snapshots_table(self) -> str:
-        """The qualified name of the run's ``_snapshots`` table. The snapshots are built
-        on the first call (a question in SQL never needs them), then reused."""
-        if self._snapshots is None:
-            self._snapshots = self._database.snapshots_of(self.catalog)
-        return self._snapshots
+    def snapshots_table(self, segment: int | None = None) -> str:
+        """What to read the run's ``_snapshots`` rows from (in SQL, after ``FROM``): the
+        table of ``segment``, built on its first use (a question in SQL never needs
+        them), then reused; or, when ``segment`` is None, every segment's (all built)."""
+        if segment is None:
+            every = self.snapshot_every
+            tables = dict.fromkeys(
+                self.snapshots_table(n) for n in range(segments(self.extent.events, every))
+            )
+            if len(tables) == 1:
+                return next(iter(tables))
+            return "(" + " UNION ALL ".join(f"SELECT * FROM {t}" for t in tables) + ")"
+        found = self._snapshots.get(segment)
+        if found is None:
+            found = self._snapshots[segment] = self._database.snapshots_of(self.catalog, segment)
+        return found
 
-    @property
-    def _first_keys(self) -> dict[str, list[int]]:
-        """Time and tick of the first event of each snapshot's block."""
-        if self._keys is None:
-            rows = self.con.execute(
-                f"SELECT first_t_ns, first_tick FROM {self.snapshots_table()} "
-                "WHERE run_id = $run_id ORDER BY seq",
-                {"run_id": self._stored_id},
-            ).fetchall()
-            self._keys = {
-                "t_ns": [_PAST if r[0] is None else r[0] for r in rows],
-                "tick": [_PAST if r[1] is None else r[1] for r in rows],
-            }
-        return self._keys
+    def first_keys(self, index: int) -> tuple[int, int]:
+        """(time, tick) of the first event of snapshot ``index``'s block (``_PAST`` for
+        both when the block is empty), read from the tables (a point query on seq)."""
+        p, lo, hi = self._prefix, index * self.snapshot_every, (index + 1) * self.snapshot_every
+        where = "WHERE run_id = $run_id AND seq >= $lo AND seq < $hi"
+        found = self.con.execute(
+            f"""SELECT t_ns, tick FROM (
+                SELECT seq, t_ns, tick FROM {p}transitions {where}
+                UNION ALL SELECT seq, t_ns, tick FROM {p}blackboard {where}
+                UNION ALL SELECT seq, t_ns, tick FROM {p}_mutations {where})
+            ORDER BY seq LIMIT 1""",
+            {"run_id": self._stored_id, "lo": lo, "hi": hi},
+        ).fetchall()
+        return (found[0][0], found[0][1]) if found else (_PAST, _PAST)
 
     def _block(self, index: int) -> tuple[dict, EventBatch]:
         """Snapshot ``index``: the state before event ``index * snapshot_every`` (as JSON)
@@ -220,7 +235,7 @@ class Run:
         seq = index * self.snapshot_every
         state, events = only_row(
             self.con,
-            f"SELECT state, events FROM {self.snapshots_table()} "
+            f"SELECT state, events FROM {self.snapshots_table(segment_of(index))} "
             f"WHERE run_id = $run_id AND seq = $seq",
             {"run_id": self._stored_id, "seq": seq},
         )
@@ -240,7 +255,7 @@ class Run:
     def _count_where(self, attribute: str, limit: int) -> int:
         """Events whose ``t_ns`` (or ``tick``) is at most ``limit``. Both never decrease
         along seq, so the blocks' first keys find the one block to count in."""
-        index = bisect_right(self._first_keys[attribute], limit) - 1
+        index = bisect_right(self._keys[attribute], limit) - 1
         if index < 0:
             return 0
         _state, batch = self._block(index)
@@ -424,6 +439,26 @@ class Run:
         ).fetchall()
         keys = ("seq", "t_ns", "tick", "question", "intent", "answer")
         return [dict(zip(keys, row, strict=True)) for row in rows]
+
+
+class _FirstKeys:
+    """The time (``column`` 0) or tick (1) of the first event of each snapshot's block,
+    as a sequence that ``bisect`` searches: each is read from the tables when first
+    looked at (``Run.first_keys``), so a search costs a few point queries."""
+
+    def __init__(self, run: Run, column: int) -> None:
+        self.run = run
+        self.column = column
+        self.known: dict[int, int] = {}
+
+    def __len__(self) -> int:
+        return self.run.extent.events // self.run.snapshot_every + 1
+
+    def __getitem__(self, index: int) -> int:
+        found = self.known.get(index)
+        if found is None:
+            found = self.known[index] = self.run.first_keys(index)[self.column]
+        return found
 
 
 def _status_name(status: str | Status) -> str:

@@ -47,6 +47,8 @@ class Columns:
     layout: tuple[tuple[str, str], ...]
     count: int = 0
     data: list[bytearray] = field(default_factory=list)
+    #: bytes held (kept as columns are added: the scan checks it after every message)
+    size: int = 0
 
     def __post_init__(self) -> None:
         self.data = [bytearray() for _ in self.layout]
@@ -54,14 +56,12 @@ class Columns:
     def add(self, buffer: bytes, message: columns.Message) -> None:
         """Append the columns of ``message`` (located in ``buffer``)."""
         view = memoryview(buffer)
-        for column, (start, end) in zip(self.data, message.columns, strict=True):
+        spans = message.columns
+        for column, (start, end) in zip(self.data, spans, strict=True):
             column += view[start:end]
         self.count += message.count
-
-    @property
-    def size(self) -> int:
-        """Bytes held."""
-        return sum(len(column) for column in self.data)
+        if spans:
+            self.size += spans[-1][1] - spans[0][0]  # the columns are contiguous
 
 
 @dataclass
@@ -116,6 +116,7 @@ class McapScan:
         self.out = Collected(Walk(path))
         self.topics: dict[int, str] = {}
         self.events_channel: bytes | None = None
+        self.ticks_channel: bytes | None = None
         self.batch = RowBatch()
         self.on_batch = on_batch
 
@@ -138,9 +139,13 @@ class McapScan:
             if opcode == message:
                 if type(buffer) is not bytes:  # a message outside chunks: rare, copied
                     buffer, body, end = buffer[body:end], 0, end - body
-                events = self.events_channel
-                if events is not None and buffer[body : body + 2] == events:
+                channel_id = buffer[body : body + 2]
+                if channel_id == self.events_channel:
                     self._events(buffer, body + MESSAGE_HEAD, end)
+                elif channel_id == self.ticks_channel and self._binary_ticks(
+                    buffer, body + MESSAGE_HEAD, end
+                ):
+                    pass
                 else:
                     self._message(buffer, body, end)
                 if self.batch.size >= BATCH_BYTES:
@@ -180,10 +185,23 @@ class McapScan:
         if end - 2 > writes + 12:
             self.batch.writes.append(view[writes + 12 : end - 2])
 
+    def _binary_ticks(self, buffer: bytes, start: int, end: int) -> bool:
+        """A binary ticks message, cut where it lies (False for another kind)."""
+        if buffer[start : start + 4] != columns.TICKS_MAGIC:
+            return False
+        message = columns.locate(buffer, start, end)
+        if message.teardown:
+            self.out.other_ticks.append(bytes(buffer[start:end]))
+        else:
+            self.batch.tick_columns.add(buffer, message)
+        return True
+
     def _channel(self, channel: Channel) -> None:
         self.topics[channel.id] = channel.topic
         if channel.topic == fmt.EVENTS_TOPIC:
             self.events_channel = _CHANNEL_ID.pack(channel.id)
+        elif channel.topic == fmt.TICKS_TOPIC:
+            self.ticks_channel = _CHANNEL_ID.pack(channel.id)
 
     def _message(self, buffer: bytes, body: int, end: int) -> None:
         topic = self.topics.get(_CHANNEL_ID.unpack_from(buffer, body)[0])

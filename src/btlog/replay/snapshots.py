@@ -19,6 +19,7 @@ stays linear in the run's length (``STATE_BYTES_PER_EVENT``), never states x bou
 
 from __future__ import annotations
 
+from collections.abc import Iterator
 from typing import TYPE_CHECKING, Any
 
 import duckdb
@@ -50,6 +51,10 @@ INLINE_VALUE_BYTES = 4096
 #: about as much as reading one state, and 150,000 nodes or 200 MB of blackboard values
 #: are stored a few times, not once every 512 events (issue 24).
 STATE_BYTES_PER_EVENT = 64
+#: Snapshots per segment: a segment's snapshots are built together, on the first state
+#: asked for in its range (``segment_of``), so a first answer about a moment of a long
+#: run builds one segment, not the whole run's snapshots (issue 27).
+SEGMENT_BLOCKS = 2048
 #: Bytes of one node's entries in a snapshot (status, activation, last failure).
 _NODE_STATE_BYTES = 48
 #: Bytes of a blackboard entry besides its key and value (quotes, scope, separators).
@@ -95,6 +100,28 @@ def load_mutations(
     return [fmt.decode_mutation(orjson.loads(message)) for (message,) in rows]
 
 
+def segments(events: int, every: int) -> int:
+    """How many segments of ``SEGMENT_BLOCKS`` snapshots a run of ``events`` events has
+    (its snapshots are every ``every`` events, from seq 0 to the last multiple)."""
+    return (events // every) // SEGMENT_BLOCKS + 1
+
+
+def segment_of(index: int) -> int:
+    """The segment holding snapshot ``index`` (the one before event ``index * every``)."""
+    return index // SEGMENT_BLOCKS
+
+
+def segment_bounds(events: int, every: int, segment: int | None) -> tuple[int, int]:
+    """(first, last) boundary (seq) of the snapshots of ``segment`` (None: every one)."""
+    last = events // every
+    if segment is None:
+        return 0, last * every
+    first = segment * SEGMENT_BLOCKS
+    if not 0 <= first <= last:
+        raise ValueError(f"segment {segment} is outside a run of {events} events")
+    return first * every, min(last, first + SEGMENT_BLOCKS - 1) * every
+
+
 def build_snapshots(
     con: duckdb.DuckDBPyConnection,
     run_id: str,
@@ -102,23 +129,38 @@ def build_snapshots(
     events: int,
     every: int,
     target: str = "_snapshots",
+    segment: int | None = None,
 ) -> int:
     """Store a row in ``target`` (a ``_snapshots`` table) every ``every`` events (from
-    seq 0): the state *before* that event, read from the tables of the connection's
-    current catalog (``snapshot_rows``). Returns the row count."""
-    table = snapshot_rows(con, run_id, tree, events, every)
-    insert_arrow(con, target, run_id, table)
-    return table.num_rows
+    seq 0) — those of ``segment`` only, or of every segment, one at a time (None): the
+    state *before* that event, read from the tables of the connection's current catalog
+    (``snapshot_rows``). Returns the row count."""
+    stored = 0
+    for number in range(segments(events, every)) if segment is None else (segment,):
+        table = snapshot_rows(con, run_id, tree, events, every, number)
+        insert_arrow(con, target, run_id, table)
+        stored += table.num_rows
+        del table
+    return stored
 
 
 def snapshot_rows(
-    con: duckdb.DuckDBPyConnection, run_id: str, tree: Tree, events: int, every: int
+    con: duckdb.DuckDBPyConnection,
+    run_id: str,
+    tree: Tree,
+    events: int,
+    every: int,
+    segment: int | None = None,
 ) -> pa.Table:
-    """The ``_snapshots`` rows of a run (without ``run_id``), one every ``every`` events.
-    Built as SQL over the tables (``SNAPSHOTS_SQL``), but for the retry counts, folded
-    by ``StateProjection`` over the few events that change them."""
+    """The ``_snapshots`` rows of a run (without ``run_id``), one every ``every`` events:
+    those of ``segment`` (None: all of them). Built as SQL over the tables
+    (``SNAPSHOTS_SQL``): what holds at the segment's first boundary is one aggregation
+    over the events before it, so a segment costs a scan of the run up to it plus the
+    work of its own events. The retry counts are folded by ``StateProjection`` over the
+    few events that change them."""
     import pyarrow as pa
 
+    first, last = segment_bounds(events, every, segment)
     mutations = load_mutations(con, run_id)
     final = StateProjection(tree)
     for mutation in mutations:
@@ -130,7 +172,7 @@ def snapshot_rows(
         [n.uid for n in retries],
         [child.uid for n in retries for child in n.children],
     )
-    attempts = _retry_attempts(con, run_id, tree, mutations, counted, events, every)
+    attempts = _retry_attempts(con, run_id, tree, mutations, counted, events, every, first, last)
     view = "_btlog_retry_attempts"
     con.register(view, attempts)
     try:
@@ -138,25 +180,42 @@ def snapshot_rows(
             "run_id": run_id,
             "k": every,
             "n": events,
+            "b0": first,
+            "b1": last,
+            **_last_before(con, run_id, first, every),
             "execution": execution,
             "large": INLINE_VALUE_BYTES,
         }
         rows = con.sql(SNAPSHOTS_SQL.format(retry_view=view), params=params).to_arrow_table()
     finally:
         con.unregister(view)
-    blocks = event_blocks(con, run_id, every, rows.num_rows)
+    blocks = event_blocks(con, run_id, every, rows.num_rows, first // every)
     return rows.append_column("events", pa.array(blocks, pa.binary()))
 
 
-def _latest(name: str, where: str, partition: str, value: str) -> str:
+#: The rows before $b0 as ``_latest`` reads them: the latest seq of each kind of change
+#: of each node (a few rows a node), so the run before a segment is grouped once, cheaply
+#: (``max`` over small keys, not ``arg_max`` over blocks x nodes).
+PREFIX = "prefix WHERE true"
+#: The rows before $b0 themselves, for what the latest kinds of change cannot tell.
+PREFIX_ROWS = "transitions WHERE run_id = $run_id AND seq < $b0"
+
+
+def _latest(name: str, where: str, partition: str, value: str, before: str = PREFIX) -> str:
     """CTEs ``name_in`` and ``name``: for each snapshot boundary ``b`` (a multiple of $k,
-    at most $n) and each ``partition`` value, ``value`` of the latest row of
+    from $b0 to $b1) and each ``partition`` value, ``value`` of the latest row of
     ``transitions`` matching ``where`` before ``b``. The latest row of each block of $k
-    seqs is found by one aggregation, then carried forward over the boundaries, so the
-    millions of rows are grouped once and only blocks x keys rows are windowed."""
+    seqs, and of the rows before $b0 (read from ``before``: ``PREFIX`` or
+    ``PREFIX_ROWS``) taken as one, is found by one aggregation, then carried forward
+    over the boundaries, so the millions of rows are grouped once and only blocks x
+    keys rows are windowed."""
     return f"""{name}_in AS (
+        SELECT $b0 AS b, {partition} AS p, arg_max({value}, seq) AS v
+        FROM {before} AND {where} GROUP BY ALL
+        UNION ALL
         SELECT (seq // $k + 1) * $k AS b, {partition} AS p, arg_max({value}, seq) AS v
-        FROM transitions WHERE run_id = $run_id AND {where} GROUP BY ALL),
+        FROM transitions WHERE run_id = $run_id AND seq >= $b0 AND seq < $b1 AND {where}
+        GROUP BY ALL),
     {name} AS (
         SELECT * FROM (
             SELECT bounds.b, keys.p AS {partition},
@@ -168,20 +227,24 @@ def _latest(name: str, where: str, partition: str, value: str) -> str:
 
 
 #: A change that starts an activation (``btlog.history.resumes``): out of IDLE, and not
-#: the result a node returns right after its own halt (the event before it).
-STARTS_WHERE = """prev_status = 'IDLE' AND NOT (status IN ('SUCCESS', 'FAILURE') AND EXISTS (
-    SELECT 1 FROM transitions h WHERE h.run_id = transitions.run_id
-        AND h.seq = transitions.seq - 1 AND h.uid = transitions.uid
-        AND h.prev_status = 'RUNNING' AND h.status = 'IDLE'))"""
+#: the result a node returns right after its own halt (the event before it). The halts
+#: are few, so they are looked up in a set of their (seq, uid) (a correlated ``EXISTS``
+#: made DuckDB group every change out of IDLE: 20 s and 1.2 GB at 30M events).
+STARTS_WHERE = """prev_status = 'IDLE' AND NOT (status IN ('SUCCESS', 'FAILURE')
+    AND {{'s': seq - 1, 'u': uid}} IN (SELECT {{'s': seq, 'u': uid}} FROM transitions
+        WHERE run_id = $run_id AND seq < $b1 AND prev_status = 'RUNNING' AND status = 'IDLE'))"""
 
 #: The snapshot rows: the state before each boundary ``b`` as ``State.to_json`` writes it
 #: (large blackboard values named by seq in ``blackboard_refs``, see ``snapshot_json``).
 SNAPSHOTS_SQL = (
-    "WITH bounds AS (SELECT unnest(range(0, $n // $k + 1)) * $k AS b),\n"
+    "WITH bounds AS (SELECT unnest(range($b0 // $k, $b1 // $k + 1)) * $k AS b),\n"
+    "prefix AS (SELECT uid, prev_status, status, max(seq) AS seq, $run_id AS run_id\n"
+    "    FROM transitions WHERE run_id = $run_id AND seq < $b0\n"
+    "    GROUP BY uid, prev_status, status),\n"
     + ",\n".join(
         (
             _latest("status_at", "true", "uid", "enum_code(status)"),
-            _latest("activation_at", STARTS_WHERE, "uid", "seq"),
+            _latest("activation_at", STARTS_WHERE, "uid", "seq", PREFIX_ROWS),
             _latest("failure_at", "status = 'FAILURE'", "uid", "seq"),
             _latest(
                 "leaf_at", "status <> 'IDLE' AND list_contains($execution, uid)", "run_id", "uid"
@@ -189,17 +252,24 @@ SNAPSHOTS_SQL = (
         )
     )
     + """,
+    board AS (
+        SELECT scope, key, max(seq) AS seq, arg_max(type, seq) AS type,
+            arg_max(value, seq) AS value
+        FROM blackboard WHERE run_id = $run_id AND seq < $b0 GROUP BY scope, key
+        UNION ALL SELECT scope, key, seq, type, value FROM blackboard
+        WHERE run_id = $run_id AND seq >= $b0 AND seq < $b1),
     writes AS (
-        SELECT unnest(range(seq // $k + 1, coalesce(nxt, $n) // $k + 1)) * $k AS b,
+        SELECT unnest(range(greatest(seq // $k + 1, $b0 // $k),
+                least(coalesce(nxt, $n), $b1) // $k + 1)) * $k AS b,
             scope, key, seq, type, value, length(value::VARCHAR) > $large AS big
         FROM (SELECT *, lead(seq) OVER (PARTITION BY scope, key ORDER BY seq) AS nxt
-              FROM blackboard WHERE run_id = $run_id)
-        WHERE coalesce(nxt, $n) // $k > seq // $k),
+              FROM board)
+        WHERE least(coalesce(nxt, $n), $b1) // $k > seq // $k),
     scopes AS (SELECT DISTINCT b, scope FROM writes),
     halted_at AS (
         SELECT seq + 1 AS b, uid AS v FROM transitions
         WHERE run_id = $run_id AND prev_status = 'RUNNING' AND status = 'IDLE'
-            AND (seq + 1) % $k = 0),
+            AND (seq + 1) % $k = 0 AND seq >= $b0 - 1 AND seq < $b1),
     entries AS (
         SELECT b, scope, json_group_object(key, CASE WHEN big THEN NULL ELSE value END) AS obj
         FROM writes WHERE type <> 'unset' GROUP BY b, scope),
@@ -218,13 +288,18 @@ SNAPSHOTS_SQL = (
         UNION ALL SELECT b, 'last_failure', json_group_object(uid::VARCHAR, v)
         FROM failure_at GROUP BY b),
     every_event AS (
-        SELECT seq, t_ns, tick FROM transitions WHERE run_id = $run_id
-        UNION ALL SELECT seq, t_ns, tick FROM blackboard WHERE run_id = $run_id
-        UNION ALL SELECT seq, t_ns, tick FROM _mutations WHERE run_id = $run_id),
+        SELECT seq, t_ns, tick FROM transitions
+        WHERE run_id = $run_id AND seq >= $b0 AND seq < $b1 + $k
+        UNION ALL SELECT seq, t_ns, tick FROM blackboard
+        WHERE run_id = $run_id AND seq >= $b0 AND seq < $b1 + $k
+        UNION ALL SELECT seq, t_ns, tick FROM _mutations
+        WHERE run_id = $run_id AND seq >= $b0 AND seq < $b1 + $k),
     last_in AS (
-        SELECT (seq // $k + 1) * $k AS b, max(seq) + 1 AS seq, arg_max(t_ns, seq) AS t_ns,
-            arg_max(tick, seq) AS tick
-        FROM every_event GROUP BY ALL),
+        SELECT (seq // $k + 1) * $k AS b, max(seq) + 1 AS seq,
+            arg_max(t_ns, seq) AS t_ns, arg_max(tick, seq) AS tick
+        FROM every_event WHERE seq < $b1 GROUP BY ALL
+        UNION ALL SELECT $b0, $before_seq, $before_t_ns, $before_tick
+        WHERE $before_seq IS NOT NULL),
     last_event AS (
         SELECT b, last_value(seq IGNORE NULLS) OVER upto AS seq,
             last_value(t_ns IGNORE NULLS) OVER upto AS t_ns,
@@ -261,6 +336,30 @@ SNAPSHOTS_SQL = (
 )
 
 
+def _last_before(
+    con: duckdb.DuckDBPyConnection, run_id: str, seq: int, every: int
+) -> dict[str, int | None]:
+    """The last event before ``seq`` as ``before_seq`` (its seq + 1), ``before_t_ns``
+    and ``before_tick`` (None when there is none): looked for in the block before
+    ``seq`` first (it is there in a run without gaps), then in the whole run before."""
+    found = None
+    for lo in dict.fromkeys((max(seq - every, 0), 0)):
+        where = "WHERE run_id = $run_id AND seq >= $lo AND seq < $seq"
+        rows = con.execute(
+            f"""SELECT seq + 1, t_ns, tick FROM (
+                SELECT seq, t_ns, tick FROM transitions {where}
+                UNION ALL SELECT seq, t_ns, tick FROM blackboard {where}
+                UNION ALL SELECT seq, t_ns, tick FROM _mutations {where})
+            ORDER BY seq DESC LIMIT 1""",
+            {"run_id": run_id, "lo": lo, "seq": seq},
+        ).fetchall()
+        found = rows[0] if rows else None
+        if found is not None or seq == 0:
+            break
+    keys = ("before_seq", "before_t_ns", "before_tick")
+    return dict(zip(keys, found if found is not None else (None, None, None), strict=True))
+
+
 def _retry_attempts(
     con: duckdb.DuckDBPyConnection,
     run_id: str,
@@ -269,21 +368,29 @@ def _retry_attempts(
     counted: tuple[list[int], list[int]],
     events: int,
     every: int,
+    first: int,
+    last: int,
 ) -> pa.Table:
-    """``State.retry_attempts`` at each boundary where it is not empty, as (b, JSON): the
+    """``State.retry_attempts`` at each boundary from ``first`` to ``last`` where it is
+    not empty, as (b, JSON): the
     projection folded over the only events that change it — failures of retries' children,
     the retry nodes' own changes, and the mutations (which may add retries). ``counted``:
     the uids of every retry node and of every child of one, all mutations applied."""
     import pyarrow as pa
 
-    rows = con.execute(
-        """SELECT seq, t_ns, tick, uid, enum_code(prev_status), enum_code(status)
-        FROM transitions WHERE run_id = $run_id
+    rows = (
+        _rows_in_batches(
+            con,
+            """SELECT seq, t_ns, tick, uid, enum_code(prev_status), enum_code(status)
+        FROM transitions WHERE run_id = $run_id AND seq < $last
             AND ((status = 'FAILURE' AND list_contains($children, uid))
                 OR (status <> 'RUNNING' AND list_contains($retries, uid)))
         ORDER BY seq""",
-        {"run_id": run_id, "retries": counted[0], "children": counted[1]},
-    ).fetchall()
+            {"run_id": run_id, "retries": counted[0], "children": counted[1], "last": last},
+        )
+        if counted[0]
+        else iter(())
+    )
     projection, codes = StateProjection(tree), STATUS_BY_CODE
     attempts = projection.state.retry_attempts
     pending = iter(mutations)
@@ -293,24 +400,41 @@ def _retry_attempts(
 
     def hold(after: int, upto: int) -> None:
         """The counts after event ``after`` hold at the boundaries in (after, upto]."""
-        if attempts:
+        start = max((after // every + 1) * every, first)
+        stop = min(upto // every * every, last)
+        if attempts and start <= stop:
             text = orjson.dumps({str(k): v for k, v in attempts.items()}).decode()
-            for b in range((after // every + 1) * every, upto // every * every + 1, every):
+            for b in range(start, stop + 1, every):
                 bounds.append(b)
                 texts.append(text)
 
-    last: int | None = None
+    latest: int | None = None
     for seq, t_ns, tick, uid, prev, status in rows:
-        if last is not None:
-            hold(last, seq)
+        if seq >= last:
+            break
+        if latest is not None:
+            hold(latest, seq)
         while mutation is not None and mutation.seq < seq:
             projection.on_mutation(mutation)
             mutation = next(pending, None)
         projection.on_status(seq, t_ns, tick, uid, codes[prev], codes[status])
-        last = seq
-    if last is not None:
-        hold(last, events)
+        latest = seq
+    if latest is not None:
+        hold(latest, events)
     return pa.table({"b": pa.array(bounds, pa.int64()), "attempts": pa.array(texts, pa.string())})
+
+
+#: Rows fetched at a time where a run's rows are folded in Python (memory stays bounded).
+FETCH_ROWS = 1 << 16
+
+
+def _rows_in_batches(
+    con: duckdb.DuckDBPyConnection, query: str, params: dict
+) -> Iterator[tuple[Any, ...]]:
+    """The rows of ``query``, fetched ``FETCH_ROWS`` at a time (never the whole result)."""
+    cursor = con.execute(query, params)
+    while batch := cursor.fetchmany(FETCH_ROWS):
+        yield from batch
 
 
 def load_snapshot(
