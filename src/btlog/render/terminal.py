@@ -29,20 +29,29 @@ STATUS_STYLES = {
 }
 
 
-#: Lines printed by one call of rich (its per-call work is about half a millisecond:
-#: a 150,000-node tree printed a line at a time took over a minute).
+#: Lines printed by one call of rich (its per-call work is about half a millisecond).
 PRINT_BATCH = 1000
 
 
 def print_lines(console: Console, lines: Iterable[Text]) -> None:
-    """Print ``lines`` one a line, as ``console.print`` would one by one, in batches."""
+    """Print ``lines`` one a line, as ``console.print`` would one by one: straight to the
+    console's file when it shows no styles (output to a file or a pipe, ``--plain``,
+    where rich's work per line made a 150,000-node tree take a minute; its consoles
+    never wrap), else through rich in batches."""
     batch: list[Text] = []
     for line in lines:
         batch.append(line)
         if len(batch) == PRINT_BATCH:
-            console.print(Text("\n").join(batch))
+            _print_batch(console, batch)
             batch = []
     if batch:
+        _print_batch(console, batch)
+
+
+def _print_batch(console: Console, batch: list[Text]) -> None:
+    if console.color_system is None and console.soft_wrap:
+        console.file.write("".join(f"{line.plain}\n" for line in batch))
+    else:
         console.print(Text("\n").join(batch))
 
 
