@@ -115,7 +115,7 @@ class StateProjection(Subscriber):
     """
 
     def __init__(self, base: Tree, state: State | None = None) -> None:
-        self.tree = Tree.from_description(base.describe())
+        self.tree = base.copy_nodes()
         self.state = state if state is not None else State()
         self._index_tree()
         for mutation in self.state.mutations:

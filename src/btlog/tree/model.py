@@ -304,6 +304,31 @@ class Tree:
         name, format_ = message.get("tree_name", "MainTree"), message.get("format", 4)
         return cls(root=roots[0], name=name, format=format_)
 
+    def copy_nodes(self) -> Tree:
+        """A tree of copies of the nodes (same uids, fields and shape) with this tree's
+        name and format: what ``from_description(describe())`` gives, without the round
+        trip through dicts and its checks (this tree passed them)."""
+        copies: dict[int, Node] = {}
+        for node in self.root.walk():
+            copy = Node(
+                uid=node.uid,
+                type=node.type,
+                name=node.name,
+                kind=node.kind,
+                ports=dict(node.ports),
+                attributes=dict(node.attributes),
+                path=node.path,
+                scope=node.scope,
+                file=node.file,
+                line=node.line,
+                added_seq=node.added_seq,
+            )
+            if node.parent is not None:
+                copy.parent = copies[node.parent.uid]
+                copy.parent.children.append(copy)
+            copies[node.uid] = copy
+        return Tree(root=copies[self.root.uid], name=self.name, format=self.format, nodes=copies)
+
     def copy_subtree(self, node: Node, first_uid: int) -> Node:
         """A deep copy of ``node``'s subtree with fresh uids from ``first_uid``, parentless."""
         uid = first_uid
