@@ -10,6 +10,7 @@ from __future__ import annotations
 import pytest
 
 from btlog.executor.behavior import NodeExecutionError
+from btlog.executor.engine import MAX_WAKE_UPS
 from btlog.status import RUNNING, SKIPPED, SUCCESS
 from tests.nodes_support import (
     act,
@@ -590,3 +591,24 @@ def test_precondition_without_if_is_an_error() -> None:
     )
     with pytest.raises(NodeExecutionError, match=r"node 'p' \(uid 1\): missing port 'if'$"):
         executor.tick()
+
+
+def test_a_retry_that_fails_at_once_forever_ends_the_tick_and_lets_time_pass() -> None:
+    """BT.CPP's test Parallel.PauseWithRetry: a RetryUntilSuccessful (num_attempts -1) of
+    AlwaysFailure wakes the tree up after every attempt until a Sleep beside it sets
+    ``paused`` false. BT.CPP re-ticks while real time passes; on btlog's simulated clock
+    a tick ends after MAX_WAKE_UPS re-ticks (it looped forever before), so the Sleeps
+    finish and the tree succeeds."""
+    r = run(
+        '<Parallel name="p"><Sequence name="s1"><Sleep msec="150"/>'
+        '<Script code="paused := false"/><Sleep msec="150"/></Sequence>'
+        '<Sequence name="s2"><Script code="paused := true; done := false"/>'
+        '<RetryUntilSuccessful name="t" _while="paused" num_attempts="-1" '
+        '_onHalted="done = true"><AlwaysFailure name="f"/></RetryUntilSuccessful>'
+        "</Sequence></Parallel>",
+        max_ticks=20,
+        oracle=False,  # BT.CPP's own test ticks exactly once per tick: no wake-up loop
+    )
+    assert r.roots[-1] == "SUCCESS" and len(r.roots) <= 5, r.roots
+    attempts = sum(c == ("f", "IDLE", "FAILURE") for changes in r.ticks.values() for c in changes)
+    assert attempts == 2 * (MAX_WAKE_UPS + 1), attempts  # two ticks of 0.1 s before 0.15 s

@@ -40,6 +40,12 @@ from btlog.tree.model import CONTROL, DECORATOR, SUBTREE, Node, Tree
 from btlog.tree.ports import parse_literal
 from btlog.tree.registry import Registry
 
+#: The most times a tick ticks the root again at once when a node asks (BT.CPP's wake-up
+#: signal). BT.CPP re-ticks while real time passes, so a timer ends a retry that fails
+#: at once forever (BT.CPP's test Parallel.PauseWithRetry); on the simulated clock no
+#: time passes within a tick, so the tick ends here and the clock moves on.
+MAX_WAKE_UPS = 100
+
 #: ``TickRecord`` from a tuple, a third faster than its ``__new__`` (once a tick)
 _tick_record = TickRecord._make
 
@@ -254,9 +260,12 @@ class Executor:
         clock.start_tick(tick)
         start = clock.t_ns  # the clock read as the nodes' hot path reads it (no call)
         status = root.execute_tick()
-        while status is RUNNING and runtime.wake_up:
+        again = 0
+        while status is RUNNING and runtime.wake_up and again < MAX_WAKE_UPS:
             runtime.wake_up = False
+            again += 1
             status = root.execute_tick()
+        runtime.wake_up = False
         if status is SUCCESS or status is FAILURE:
             root.reset_status()
         self.last_status = status

@@ -241,7 +241,11 @@ class TreeBuilder:
             self.declared.unknown_port(node_type.id, port, f"{file}:{line}", note)
             return
         known = ", ".join(node_type.ports) or "none"
-        raise TreeError(f"{node_type.id} has no port {port!r} (its ports: {known})", file, line)
+        raise TreeError(
+            f"{node_type.id} has no port {port!r} (its ports: {known}); BT.CPP refuses it too",
+            file,
+            line,
+        )
 
     def _build_subtree(self, element: XmlElement, context: BuildContext) -> Node:
         file, line = context.file, element.sourceline or 0
