@@ -13,7 +13,7 @@ from btlog.errors import EXIT_BAD_INPUT, EXIT_OK
 from btlog.record import open_recording
 from btlog.record.reader import iter_messages
 from tests.cli_support import btlog
-from tests.mcap_support import record_loop, stored_metadata, write_messages
+from tests.mcap_support import record_loop, stored_metadata, write_blackboard_dump, write_messages
 
 
 def top_level(data: bytes) -> list[tuple[int, int, int]]:
@@ -106,3 +106,18 @@ def test_a_full_disk_names_the_file(tmp_path):
     assert done.returncode == EXIT_BAD_INPUT, done.stderr
     assert done.stderr.count("\n") == 1
     assert "No space left on device" in done.stderr and str(full) in done.stderr
+
+
+def test_a_200k_key_blackboard_dump_is_read_in_bounded_memory(tmp_path):
+    """One message of 200,000 writes of 1 KB (under 1 MB on disk, 200 MB of values):
+    ``sql`` reads it under a 1 GiB address-space limit; ``explain``, whose story needs
+    more, ends in exit 0 or in exit 2 naming the limit, never in exit 3."""
+    dump = write_blackboard_dump(tmp_path / "dump.mcap", 200_000, 1000)
+    assert dump.stat().st_size < 1 << 20
+    query = "SELECT count(*), max(strlen(value::VARCHAR)) FROM blackboard"
+    done = btlog("sql", dump, query, "--format", "csv", address_space=1 << 30)
+    assert done.returncode == EXIT_OK, done.stderr
+    assert "200000,1008" in done.stdout
+    told = btlog("explain", dump, "--cache-dir", tmp_path / "cache", address_space=1 << 30)
+    assert told.returncode in (EXIT_OK, EXIT_BAD_INPUT), told.stderr
+    assert "internal error" not in told.stderr and told.stderr.count("\n") <= 1

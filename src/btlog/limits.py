@@ -128,3 +128,15 @@ def fit_address_space() -> None:
     mallopt = getattr(ctypes.CDLL(name), "mallopt", None) if name else None
     if mallopt is not None:
         mallopt(_M_ARENA_MAX, 2)
+
+
+def out_of_memory() -> str:
+    """What to say when an input needs more memory than the process may use: the
+    address-space limit (``ulimit -v``) when there is one."""
+    soft, _hard = resource.getrlimit(resource.RLIMIT_AS)
+    if soft == resource.RLIM_INFINITY:
+        return "out of memory: the input needs more memory than this machine gives"
+    return (
+        f"out of memory under the address-space limit of {soft >> 20} MiB (ulimit -v); "
+        "raise it to read this input"
+    )

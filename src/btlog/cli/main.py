@@ -20,7 +20,7 @@ from btlog import __version__
 from btlog.cli.limit_flags import add_limit_flags, apply_limit_flags
 from btlog.cli.tree_flags import add_tree_flags
 from btlog.errors import EXIT_BAD_INPUT, EXIT_BUG, EXIT_OK, one_line
-from btlog.limits import DEFAULT_QUERY_TIMEOUT, fit_address_space
+from btlog.limits import DEFAULT_QUERY_TIMEOUT, fit_address_space, out_of_memory
 from btlog.render.escape import safe
 
 #: Options whose value may be a negative moment (``--at -2s``, ``--ask "-2s=…"``).
@@ -368,6 +368,9 @@ def main(argv: Sequence[str] | None = None) -> int:
             import traceback
 
             traceback.print_exc()
+        if isinstance(error, MemoryError):  # an input too large for the memory given
+            print(f"btlog {args.command}: {out_of_memory()}", file=sys.stderr)
+            return EXIT_BAD_INPUT
         if _is_bad_input(error):
             print(f"btlog {args.command}: {safe(one_line(error))}", file=sys.stderr)
             return EXIT_BAD_INPUT
