@@ -16,11 +16,13 @@ from pathlib import Path
 
 from hypothesis import given
 from mcap.opcode import Opcode
+from mcap.writer import Writer as McapWriter
 
 from btlog.events import StatusChange
 from btlog.record.reader import Recording, open_recording
 from btlog.record.walk import HEAD, MAGIC, Walk, chunk_records, inner_records, top_records
 from btlog.runner import RunConfig, execute
+from btlog.sinks.nav2_rosbag import LOG_MSGDEF
 from tests.fbl_support import write_fbl
 from tests.fuzz_support import Damage, assert_contract, assert_prefix_kept, damaged, fuzz, run_cli
 from tests.rosbag2_support import HUMBLE, NAV2_LOG, write_sqlite_bag
@@ -145,16 +147,22 @@ def test_a_damaged_mcap_bag_is_imported_with_its_intact_chunks_or_refused(damage
         assert_prefix_kept(LOGGED[:intact], kept)
 
 
-def test_a_damaged_definition_in_the_summary_is_refused_in_one_line() -> None:
-    """The first chunk damaged (its schema lost) and the summary's copy of the definition
-    damaged too ('uint32' made 'tint32'): mcap_ros2's parser prints on stderr before it
-    raises; the refusal stays one line (found by the fuzz test above)."""
-    data = bytearray(MCAP)
-    data[CHUNK_ENDS[0][0] - 100] ^= 1
-    at = data.rfind(b"uint32 nanosec")
-    data[at] ^= 1
-    damage = Damage(bytes(data), 0, f"byte {CHUNK_ENDS[0][0] - 100} ^= 1; byte {at} ^= 1")
-    _output, outcome = _import(damage, "bag.mcap", "--tree", STAND_IN)
+def test_a_definition_the_parser_cannot_read_is_refused_in_one_line() -> None:
+    """A bag whose own definition is damaged ('uint32' made 'tint32'), every CRC valid:
+    mcap_ros2's parser prints on stderr before it raises; the refusal stays one line
+    (found by the fuzz test above, when a damaged summary was still read)."""
+    assert b"uint32 nanosec" in LOG_MSGDEF.encode()
+    with open(_FOLDER / "bad-definition.mcap", "wb") as stream:
+        writer = McapWriter(stream)
+        writer.start(profile="ros2", library="btlog tests")
+        schema = writer.register_schema(
+            NAV2_LOG, "ros2msg", LOG_MSGDEF.replace("uint32 nanosec", "tint32 nanosec").encode()
+        )
+        channel = writer.register_channel("/behavior_tree_log", "cdr", schema)
+        writer.add_message(channel, 1, b"\0\1\0\0" + bytes(16), 1)
+        writer.finish()
+    data = (_FOLDER / "bad-definition.mcap").read_bytes()
+    _output, outcome = _import(Damage(data, len(data), "none"), "bag.mcap", "--tree", STAND_IN)
     assert outcome.code == 2  # type: ignore[attr-defined]
     assert "'tint32'" in outcome.stderr  # type: ignore[attr-defined]
 
