@@ -233,17 +233,25 @@ def export(args: Namespace) -> int:
     if Path(args.output).suffix != suffix:
         raise ValueError(f"{args.output}: {expects} the suffix {suffix}")
     refuse_overwrite(args.output, [args.run], "OUT")
-    recording = open_recording(args.run)
-    for warning in recording.warnings:
-        print(f"btlog export: warning: {safe(warning)}", file=sys.stderr)
-    if args.to == "nav2":
-        from btlog.sinks.nav2_rosbag import export_nav2
+    result: Any = None
+    if args.to == "btlog":  # bounded memory when the file is in seq order (the usual case)
+        from btlog.sinks.filelog_stream import stream_filelog
 
-        result: Any = export_nav2(recording, args.output)
-    else:
-        from btlog.sinks.btcpp_filelog import export_filelog
+        streamed = stream_filelog(args.run, args.output)
+        if streamed is not None:
+            _warn(streamed.warnings)
+            result = streamed.result
+    if result is None:
+        recording = open_recording(args.run)
+        _warn(recording.warnings)
+        if args.to == "nav2":
+            from btlog.sinks.nav2_rosbag import export_nav2
 
-        result = export_filelog(recording, args.output)
+            result = export_nav2(recording, args.output)
+        else:
+            from btlog.sinks.btcpp_filelog import export_filelog
+
+            result = export_filelog(recording, args.output)
     if result.writes_left_out:
         print(
             f"btlog export: note: {result.writes_left_out} blackboard writes left out ({holds})",
@@ -253,6 +261,11 @@ def export(args: Namespace) -> int:
     counted = f"{messages} messages, " if messages is not None else ""
     print(f"{safe(args.run)} -> {safe(result.path)}: {counted}{result.transitions} transitions")
     return 0
+
+
+def _warn(warnings: list[str]) -> None:
+    for warning in warnings:
+        print(f"btlog export: warning: {safe(warning)}", file=sys.stderr)
 
 
 def attach(args: Namespace) -> int:

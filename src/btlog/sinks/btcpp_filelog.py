@@ -109,7 +109,7 @@ def export_filelog(recording: Recording, output: str | os.PathLike) -> ExportRes
     if too_big:
         raise SourceError(f"{where}: uid {too_big[0]} does not fit FileLogger2's 16 bits")
     xml = tree_xml(recording.tree)
-    start_us = _start_us(recording.metadata.get("started_at"), where)
+    start_us = start_us_of(recording.metadata.get("started_at"), where)
     records = bytearray()
     transitions = writes = 0
     for event in recording.events:
@@ -127,7 +127,9 @@ def export_filelog(recording: Recording, output: str | os.PathLike) -> ExportRes
     return ExportResult(Path(output), transitions, writes)
 
 
-def _start_us(started_at: object, where: str) -> int:
+def start_us_of(started_at: object, where: str) -> int:
+    """The run's ``started_at`` metadata as FileLogger2's start time (µs since the epoch);
+    SourceError naming ``where`` when it is not a time."""
     try:
         moment = datetime.fromisoformat(str(started_at))
     except ValueError:
