@@ -24,10 +24,10 @@ def add_parsers(commands: argparse._SubParsersAction) -> None:
     imp = commands.add_parser(
         "import",
         help="import a BT.CPP log (FileLogger2 .btlog, v3 FileLogger .fbl, SqliteLogger "
-        ".db3/.btdb) or a Nav2 bag",
-        description="Turn a BehaviorTree.CPP log, or a Nav2 rosbag2 bag (MCAP or SQLite, "
-        "a folder or one file) with /behavior_tree_log, into btlog recordings (format from "
-        "content).",
+        ".db3/.btdb) or a Nav2 or py_trees_ros bag",
+        description="Turn a BehaviorTree.CPP log, or a rosbag2 bag (MCAP or SQLite, a folder "
+        "or one file) with Nav2's /behavior_tree_log or py_trees_ros' BehaviourTree "
+        "snapshots, into btlog recordings (format from content).",
     )
     imp.add_argument(
         "file",
@@ -171,12 +171,18 @@ def import_(args: Namespace) -> int:
         raise ValueError(f"{args.file}: --goal applies to Nav2 bags only")
     if kind == "rosbag2":
         from btlog.sources.nav2_rosbag import import_bag
+        from btlog.sources.py_trees_ros_bag import import_snapshots, snapshot_topics
 
         if args.session is not None:
             raise ValueError(f"{args.file}: --session applies to SQLite logs only")
         if not args.output:
             default = Path(f"{Path(args.file).stem}-btlog.mcap")
-        results = import_bag(args.file, default, args.tree, registry, args.goal, gap)
+        if snapshot_topics(args.file):  # py_trees_ros: the snapshots carry the tree
+            if args.tree is not None or args.goal is not None:
+                raise ValueError(f"{args.file}: py_trees_ros snapshots take no --tree, --goal")
+            results = [import_snapshots(args.file, default)]
+        else:
+            results = import_bag(args.file, default, args.tree, registry, args.goal, gap)
     elif kind == "btcpp-fbl":
         from btlog.sources.btcpp_fbl import import_fbl
 

@@ -11,7 +11,7 @@ small module of its own.
   BT.CPP process is recorded live through the Groot2 protocol (``groot2``).
   ``btcpp_tree`` reads the tree XML BT.CPP writes for its loggers. ``rosbag2`` reads
   ROS 2 bags (MCAP or SQLite storage); Nav2's ``/behavior_tree_log`` is imported from
-  them (``nav2_rosbag``).
+  them (``nav2_rosbag``), and py_trees_ros' tree snapshots (``py_trees_ros_bag``).
 - Sinks write a btlog recording in another tool's format (``btlog.sinks``):
   FileLogger2 for Groot2.
 
