@@ -70,16 +70,22 @@ def measure(folder: Path, value_mib: float, ticks: int, env: dict[str, str]) -> 
     # the first state asked for builds the snapshots (a file beside the cache)
     ask, ask_rss = btlog("ask", str(recording), "--at", "end", "What are you doing?", env=env)
     cache_dir = Path(env["BTLOG_CACHE_DIR"])
-    snapshots = max(cache_dir.glob("*.snapshots.duckdb"), key=lambda p: p.stat().st_mtime_ns)
-    newest = snapshots.with_name(snapshots.name.replace(".snapshots.duckdb", ".duckdb"))
+    # the snapshots are built a segment at a time: NAME.N.snapshots.duckdb beside NAME.duckdb
+    newest = max(
+        (p for p in cache_dir.glob("*.duckdb") if not p.name.endswith(".snapshots.duckdb")),
+        key=lambda p: p.stat().st_mtime_ns,
+    )
+    segments = sorted(cache_dir.glob(newest.name.replace(".duckdb", ".*.snapshots.duckdb")))
+    assert segments, f"no snapshots beside {newest}"
     import duckdb
 
     with duckdb.connect(str(newest), read_only=True) as con:
         (events,) = con.execute("SELECT events FROM _ingest").fetchone()
-    with duckdb.connect(str(snapshots), read_only=True) as con:
-        (state_bytes,) = con.execute(
-            "SELECT sum(strlen(state::VARCHAR)) FROM _snapshots"
-        ).fetchone()
+    state_bytes = 0
+    for segment in segments:
+        with duckdb.connect(str(segment), read_only=True) as con:
+            (size,) = con.execute("SELECT sum(strlen(state::VARCHAR)) FROM _snapshots").fetchone()
+            state_bytes += size or 0
     return {
         "events": events,
         "file_mb": recording.stat().st_size / 1e6,
@@ -87,7 +93,7 @@ def measure(folder: Path, value_mib: float, ticks: int, env: dict[str, str]) -> 
         "first": (first, first_rss),
         "second": (second, second_rss),
         "ask": (ask, ask_rss),
-        "cache_bytes": newest.stat().st_size + snapshots.stat().st_size,
+        "cache_bytes": newest.stat().st_size + sum(p.stat().st_size for p in segments),
         "state_bytes": state_bytes,
     }
 
