@@ -16,7 +16,7 @@ Each is imported as ``btlog import`` does (``import_fbl`` / ``import_bag``), bes
 transitions per second. With ``--real DIR`` the ``.fbl`` files under DIR are timed too.
 
     python benchmarks/bench_logs.py                  # K = 1, 10, 100
-    python benchmarks/bench_logs.py --real /work/corpus/repos
+    python benchmarks/bench_logs.py --real DIR       # your own folder of .fbl logs
     python benchmarks/bench_logs.py --smoke          # K = 1, 3, one repeat
 
 It prints figures; it asserts nothing.

@@ -38,6 +38,16 @@ from btlog.record.walk import (
 )
 from btlog.tree.model import Tree, TreeDescriptionError
 
+#: What decoding a message that does not follow the btlog format raises.
+MALFORMED_MESSAGE = (
+    orjson.JSONDecodeError,
+    KeyError,
+    TypeError,
+    ValueError,
+    AttributeError,
+    IndexError,
+)
+
 
 def raw_records(path: str | os.PathLike, walk: Walk) -> Iterator[Any]:
     """Every record of the file as ``mcap`` record objects, in file order, chunks opened
@@ -211,14 +221,7 @@ def open_recording(path: str | os.PathLike) -> Recording:
     try:
         for record in _records(name, walk):
             contents.add(record)
-    except (
-        orjson.JSONDecodeError,
-        KeyError,
-        TypeError,
-        ValueError,
-        AttributeError,
-        IndexError,
-    ) as error:
+    except MALFORMED_MESSAGE as error:
         if isinstance(error, RecordingError):
             raise
         raise RecordingError(

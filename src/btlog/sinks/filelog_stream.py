@@ -31,7 +31,7 @@ import orjson
 from btlog.events import BlackboardWrite, StatusChange
 from btlog.record import columns
 from btlog.record import format as fmt
-from btlog.record.reader import iter_messages, read_metadata, tree_of
+from btlog.record.reader import MALFORMED_MESSAGE, iter_messages, read_metadata, tree_of
 from btlog.record.walk import RecordingError
 from btlog.sinks.btcpp_filelog import ExportResult, start_us_of, tree_xml
 from btlog.sources import FILELOG_MAGIC
@@ -83,17 +83,7 @@ def stream_filelog(path: str | os.PathLike, output: str | os.PathLike) -> Stream
     except SourceError:
         _remove(output, state)
         raise
-    except (
-        _NotStreamable,
-        RecordingError,
-        orjson.JSONDecodeError,
-        KeyError,
-        TypeError,
-        ValueError,
-        AttributeError,
-        IndexError,
-        struct.error,
-    ):
+    except (_NotStreamable, RecordingError, *MALFORMED_MESSAGE, struct.error):
         _remove(output, state)
         return None
 

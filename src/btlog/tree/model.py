@@ -310,19 +310,8 @@ class Tree:
         trip through dicts and its checks (this tree passed them)."""
         copies: dict[int, Node] = {}
         for node in self.root.walk():
-            copy = Node(
-                uid=node.uid,
-                type=node.type,
-                name=node.name,
-                kind=node.kind,
-                ports=dict(node.ports),
-                attributes=dict(node.attributes),
-                path=node.path,
-                scope=node.scope,
-                file=node.file,
-                line=node.line,
-                added_seq=node.added_seq,
-            )
+            copy = _copy_node(node, node.uid)
+            copy.added_seq = node.added_seq
             if node.parent is not None:
                 copy.parent = copies[node.parent.uid]
                 copy.parent.children.append(copy)
@@ -335,18 +324,7 @@ class Tree:
 
         def clone(original: Node) -> Node:
             nonlocal uid
-            copy = Node(
-                uid=uid,
-                type=original.type,
-                name=original.name,
-                kind=original.kind,
-                ports=dict(original.ports),
-                attributes=dict(original.attributes),
-                path=original.path,
-                scope=original.scope,
-                file=original.file,
-                line=original.line,
-            )
+            copy = _copy_node(original, uid)
             uid += 1
             for child in original.children:
                 child_copy = clone(child)
@@ -388,3 +366,19 @@ class Tree:
         inner = node.path if node.kind == SUBTREE else scope
         for child in node.children:
             self._register_inserted(child, inner, seq)
+
+
+def _copy_node(node: Node, uid: int) -> Node:
+    """``node`` alone (no parent, no children, no ``added_seq``) under ``uid``."""
+    return Node(
+        uid=uid,
+        type=node.type,
+        name=node.name,
+        kind=node.kind,
+        ports=dict(node.ports),
+        attributes=dict(node.attributes),
+        path=node.path,
+        scope=node.scope,
+        file=node.file,
+        line=node.line,
+    )
