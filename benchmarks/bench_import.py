@@ -35,7 +35,7 @@ def make_log(folder: Path, transitions: int) -> Path:
     seed = folder / "seed.btlog"
     export_filelog(open_recording(KITTING), seed)
     log = read_filelog(seed)
-    head = seed.read_bytes()[: len(seed.read_bytes()) - len(log.records)]
+    head = seed.read_bytes()[: log.records_offset]
     cycle = list(log.transitions())
     span = cycle[-1][0] + 100_000
     out = bytearray(head)

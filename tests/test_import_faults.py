@@ -14,6 +14,8 @@ from btlog.events import StatusChange
 from btlog.record.reader import open_recording
 from btlog.sinks.btcpp_filelog import export_filelog
 from btlog.sources.btcpp_filelog import read_filelog
+from btlog.sources.btcpp_records import RECORD_SIZE
+from btlog.sources.builder import SourceError
 from btlog.status import Status
 from tests.cli_support import ROOT
 from tests.fuzz_support import Outcome, assert_contract, run_cli
@@ -72,6 +74,34 @@ def test_a_record_naming_no_node_is_refused_with_its_byte(btlog_file: Path, tmp_
     result = run_cli("import", broken, "-o", tmp_path / "uid.mcap")
     assert_contract(result, "uid.btlog", "node uid 999", f"record 5 (byte {at})", codes=[2])
     assert not (tmp_path / "uid.mcap").exists()
+
+
+def test_records_are_read_in_blocks_with_the_same_transitions_and_error_places(
+    btlog_file: Path, tmp_path: Path
+) -> None:
+    """The records are read a block at a time (memory bounded whatever the file's size):
+    blocks of 7 records give the transitions of one read, a bad status in a later block
+    is named by its record and byte, and a file cut while it is read says so."""
+    log = read_filelog(btlog_file)
+    whole = list(log.transitions())
+    assert len(whole) == len(log) > 7 * 3
+    assert list(log.transitions(block=7 * RECORD_SIZE)) == whole
+    data = bytearray(btlog_file.read_bytes())
+    at = log.records_offset + 17 * RECORD_SIZE
+    data[at + 8] = 9
+    broken = tmp_path / "status.btlog"
+    broken.write_bytes(bytes(data))
+    seen: list[tuple] = []
+    with pytest.raises(SourceError, match=rf"status\.btlog: record 17 \(byte {at}\): status 9"):
+        seen.extend(read_filelog(broken).transitions(block=7 * RECORD_SIZE))
+    assert seen == whole[:17]
+    cut = tmp_path / "cut.btlog"
+    cut.write_bytes(btlog_file.read_bytes())
+    opened = read_filelog(cut)
+    with open(cut, "r+b") as stream:
+        stream.truncate(log.records_offset + 10 * RECORD_SIZE)
+    with pytest.raises(SourceError, match=r"cut\.btlog: the file was cut while read, at record 10 "):
+        list(opened.transitions(block=7 * RECORD_SIZE))
 
 
 # -- SqliteLogger files ----------------------------------------------------------------------

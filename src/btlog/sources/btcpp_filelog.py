@@ -40,52 +40,75 @@ VERSION = 1
 _HEAD = len(FILELOG_MAGIC) + 1
 
 
+#: Bytes of records read at a time (a whole number of records): the import's memory
+#: does not grow with the file.
+BLOCK = RECORD_SIZE * 65536
+
+
 @dataclass
 class FileLog:
-    """A parsed FileLogger2 file: version, tree XML, start time (µs) and where it lies,
-    the raw records and the byte they start at."""
+    """A FileLogger2 file's header (version, tree XML, start time in µs and where it lies)
+    and where its records lie; the records are read from the file when iterated."""
 
     file: str
     version: int
     xml: bytes
     start_us: int
-    records: bytes
+    count: int
     trailing: int
     start_offset: int = 0
     records_offset: int = 0
 
     def __len__(self) -> int:
-        return len(self.records) // RECORD_SIZE
+        return self.count
 
-    def transitions(self) -> Iterator[tuple[int, int, Status]]:
-        """``(µs since start, uid, status)`` for each record, in file order."""
-        return decode_records(self.records, self.file, self.records_offset)
+    def transitions(self, block: int = BLOCK) -> Iterator[tuple[int, int, Status]]:
+        """``(µs since start, uid, status)`` for each whole record, in file order, read
+        ``block`` bytes (rounded to whole records) at a time: the records the file held
+        when it was opened."""
+        per_block = max(1, block // RECORD_SIZE)
+        try:
+            with open(self.file, "rb") as stream:
+                stream.seek(self.records_offset)
+                for first in range(0, self.count, per_block):
+                    want = min(per_block, self.count - first) * RECORD_SIZE
+                    data = stream.read(want)
+                    yield from decode_records(data, self.file, self.records_offset, first)
+                    if len(data) < want:
+                        at = record_at(first + len(data) // RECORD_SIZE, self.records_offset)
+                        raise SourceError(f"{self.file}: the file was cut while read, at {at}")
+        except OSError as error:
+            raise SourceError(f"{self.file}: cannot read the file: {error.strerror}") from None
 
 
 def read_filelog(path: str | os.PathLike) -> FileLog:
-    """Parse a FileLogger2 file (``SourceError`` naming the file and the bad value)."""
+    """Parse a FileLogger2 file's header (``SourceError`` naming the file and the bad
+    value); its records are read when ``FileLog.transitions`` is iterated."""
     file = os.fspath(path)
     try:
-        data = Path(path).read_bytes()
+        with open(path, "rb") as stream:
+            size = os.fstat(stream.fileno()).st_size
+            head = stream.read(_HEAD + 4)
+            if not head.startswith(FILELOG_MAGIC):
+                raise SourceError(f"{file}: not a FileLogger2 log (magic {head[:18]!r})")
+            if len(head) < _HEAD + 4:
+                raise SourceError(f"{file}: ends inside the header ({len(head)} bytes)")
+            version = head[len(FILELOG_MAGIC)]
+            if version != VERSION:
+                raise SourceError(f"{file}: FileLogger2 version {version}; btlog reads version 1")
+            (length,) = struct.unpack_from("<i", head, _HEAD)
+            body = _HEAD + 4
+            if length <= 0 or body + length + 8 > size:
+                raise SourceError(
+                    f"{file}: XML length {length} does not fit in the file ({size} bytes)"
+                )
+            xml = stream.read(length)
+            (start_us,) = struct.unpack("<q", stream.read(8))
     except OSError as error:
         raise SourceError(f"{file}: cannot read the file: {error.strerror}") from None
-    if not data.startswith(FILELOG_MAGIC):
-        raise SourceError(f"{file}: not a FileLogger2 log (magic {data[:18]!r})")
-    if len(data) < _HEAD + 4:
-        raise SourceError(f"{file}: ends inside the header ({len(data)} bytes)")
-    version = data[len(FILELOG_MAGIC)]
-    if version != VERSION:
-        raise SourceError(f"{file}: FileLogger2 version {version}; btlog reads version 1")
-    (size,) = struct.unpack_from("<i", data, _HEAD)
-    body = _HEAD + 4
-    if size <= 0 or body + size + 8 > len(data):
-        raise SourceError(f"{file}: XML length {size} does not fit in the file ({len(data)} bytes)")
-    xml = data[body : body + size]
-    (start_us,) = struct.unpack_from("<q", data, body + size)
-    records = data[body + size + 8 :]
-    trailing = len(records) % RECORD_SIZE
-    kept = records[: len(records) - trailing]
-    return FileLog(file, version, xml, start_us, kept, trailing, body + size, body + size + 8)
+    records = size - (body + length + 8)
+    count, trailing = divmod(records, RECORD_SIZE)
+    return FileLog(file, version, xml, start_us, count, trailing, body + length, body + length + 8)
 
 
 def import_filelog(

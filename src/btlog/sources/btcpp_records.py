@@ -7,6 +7,7 @@ a u8 status (0 IDLE, 1 RUNNING, 2 SUCCESS, 3 FAILURE, 4 SKIPPED).
 
 from __future__ import annotations
 
+import struct
 from collections.abc import Iterator
 
 from btlog.sources.builder import SourceError
@@ -16,6 +17,8 @@ RECORD_SIZE = 9
 MAX_UID = 0xFFFF
 MAX_US = (1 << 48) - 1
 _STATUSES = tuple(Status)
+#: A record as struct fields: the time's low 32 and high 16 bits, the uid, the status.
+_RECORD = struct.Struct("<IHHB")
 
 
 def status_of(code: object, where: str) -> Status:
@@ -25,19 +28,23 @@ def status_of(code: object, where: str) -> Status:
     raise SourceError(f"{where}: status {code!r} is not 0-4")
 
 
-def decode_records(data: bytes, where: str, base: int = 0) -> Iterator[tuple[int, int, Status]]:
+def decode_records(
+    data: bytes, where: str, base: int = 0, first: int = 0
+) -> Iterator[tuple[int, int, Status]]:
     """``(µs since start, uid, status)`` of each whole record in ``data``; errors name
-    the record and its byte (``base``: where ``data`` starts in its file)."""
-    statuses, count, from_bytes = _STATUSES, len(_STATUSES), int.from_bytes
-    for offset in range(0, len(data) - len(data) % RECORD_SIZE, RECORD_SIZE):
-        code = data[offset + 8]
-        if code >= count:
-            status_of(code, f"{where}: {record_at(offset // RECORD_SIZE, base)}")  # raises
-        yield (
-            from_bytes(data[offset : offset + 6], "little"),
-            from_bytes(data[offset + 6 : offset + 8], "little"),
-            statuses[code],
-        )
+    the record and its byte (``base``: where the records start in their file; ``first``:
+    the number of ``data``'s first record among them). The records before a bad status
+    are yielded before the error is raised."""
+    whole = len(data) - len(data) % RECORD_SIZE
+    codes = data[8:whole:RECORD_SIZE]
+    bad = len(codes)
+    if codes and max(codes) >= len(_STATUSES):
+        bad = next(i for i, code in enumerate(codes) if code >= len(_STATUSES))
+    statuses = _STATUSES
+    for low, high, uid, code in _RECORD.iter_unpack(memoryview(data)[: bad * RECORD_SIZE]):
+        yield low | high << 32, uid, statuses[code]
+    if bad < len(codes):
+        status_of(codes[bad], f"{where}: {record_at(first + bad, base)}")  # raises
 
 
 def record_at(number: int, base: int = 0) -> str:
