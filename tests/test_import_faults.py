@@ -100,7 +100,8 @@ def test_records_are_read_in_blocks_with_the_same_transitions_and_error_places(
     opened = read_filelog(cut)
     with open(cut, "r+b") as stream:
         stream.truncate(log.records_offset + 10 * RECORD_SIZE)
-    with pytest.raises(SourceError, match=r"cut\.btlog: the file was cut while read, at record 10 "):
+    cut_at = r"cut\.btlog: the file was cut while read, at record 10 \("
+    with pytest.raises(SourceError, match=cut_at):
         list(opened.transitions(block=7 * RECORD_SIZE))
 
 
