@@ -19,10 +19,15 @@ each figure is what a user meets: wall seconds and the process's peak resident m
    DuckDB's default settings. Each first answer is printed with its ratio to the faster
    of the two.
 4. **Sizes**: the recording, the cache (tables and snapshots) and their ratio.
+5. **Importing the day** (``--import``): the run exported as BT.CPP's FileLogger2
+   (``btlog export --to btlog``), imported back (``btlog import``), and recorded live
+   (``btlog attach --poll 0.0001``) from a Groot2 publisher that replays that file as fast
+   as it is polled (``groot2_replay.py``, in a process of its own, 999 transitions a
+   poll); each with its rate and peak RSS, to show whether they stay flat.
 
     python benchmarks/bench_day.py                     # ~100M events (minutes; GBs of disk)
-    python benchmarks/bench_day.py --events 10000000
-    python benchmarks/bench_day.py --smoke             # ~50k events, seconds (CI)
+    python benchmarks/bench_day.py --events 10000000 --import
+    python benchmarks/bench_day.py --smoke             # ~50k events, seconds (CI; all steps)
 
 It prints figures; it asserts nothing but that every command succeeds.
 """
@@ -31,6 +36,8 @@ from __future__ import annotations
 
 import argparse
 import os
+import re
+import socket
 import subprocess
 import sys
 import tempfile
@@ -59,6 +66,8 @@ for name in sys.argv[3:]:
 print(sum(con.execute(f"SELECT count(*) FROM {name}").fetchone()[0] for name in sys.argv[3:]))
 """
 TABLES = ("transitions", "blackboard", "ticks")
+#: ``attach --timeout``: the attach ends this long after the publisher's last reply.
+ATTACH_TIMEOUT = 0.5
 
 
 def tree_xml(actions: int) -> str:
@@ -130,6 +139,42 @@ def reference(cache: Path, folder: Path, env: dict[str, str]) -> list[tuple[str,
     return found
 
 
+def imported(folder: Path, recording: Path, env: dict[str, str]) -> None:
+    """Step 5: export the run as a ``.btlog``, import it, attach to a publisher replaying
+    it; print each figure, then delete the files."""
+    log = folder / "day.btlog"
+    back, live = folder / "day.imported.mcap", folder / "day.attached.mcap"
+    exported = btlog("export", str(recording), str(log), "--to", "btlog", env=env)
+    print(
+        f"importing the day (the run as a FileLogger2 .btlog, {log.stat().st_size / 1e6:.0f} MB):"
+    )
+    line("btlog export --to btlog", exported[0], exported[1])
+    took, rss, out = btlog("import", str(log), "-o", str(back), env=env)
+    count = int(re.search(r": (\d+) transitions", out)[1])  # type: ignore[index]
+    line(f"btlog import ({count / took / 1e6:.2f}M transitions/s)", took, rss)
+    with socket.socket() as probe:
+        probe.bind(("127.0.0.1", 0))
+        port = probe.getsockname()[1]
+    replay = [sys.executable, str(ROOT / "benchmarks" / "groot2_replay.py"), str(log), str(port)]
+    publisher = subprocess.Popen(replay, env=env, stdout=subprocess.PIPE, text=True)
+    try:
+        assert publisher.stdout is not None and publisher.stdout.readline().strip() == "ready"
+        took, rss, out = btlog(
+            "attach", f"tcp://127.0.0.1:{port}", "-o", str(live), "--poll", "0.0001",
+            "--timeout", str(ATTACH_TIMEOUT), "--reconnect", "0", env=env,
+        )  # fmt: skip
+    finally:
+        publisher.kill()
+        publisher.wait()
+    live_count = int(re.search(r": (\d+) transitions", out)[1])  # type: ignore[index]
+    if live_count != count:
+        raise SystemExit(f"attach recorded {live_count:,} transitions of {count:,}")
+    rate = count / max(took - ATTACH_TIMEOUT, 1e-9) / 1e6
+    line(f"btlog attach ({rate:.2f}M transitions/s, replayed)", took, rss)
+    for path in (log, back, live):
+        path.unlink()
+
+
 def line(label: str, seconds: float, rss: int, reference_seconds: float | None = None) -> None:
     """Print one figure (and its ratio to the reference load, the faster of the two)."""
     ratio = "" if reference_seconds is None else f"   {seconds / reference_seconds:5.2f}x DuckDB"
@@ -141,7 +186,13 @@ def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.split("\n")[0])
     parser.add_argument("--events", type=int, default=100_000_000)
     parser.add_argument("--actions", type=int, default=60)
-    parser.add_argument("--smoke", action="store_true", help="about 50,000 events")
+    parser.add_argument(
+        "--import",
+        dest="imports",
+        action="store_true",
+        help="also export the run as a FileLogger2 .btlog, import it and attach to it replayed",
+    )
+    parser.add_argument("--smoke", action="store_true", help="about 50,000 events, every step")
     parser.add_argument("--keep", type=Path, help="keep the recording and caches in this folder")
     parser.add_argument(
         "--reuse", action="store_true", help="with --keep: reuse the recording made before"
@@ -201,6 +252,8 @@ def main() -> None:
             f"({cached / events:.2f} B/event)"
         )
         print(f"answer: {first[2].strip()[:200]}")
+        if args.imports or args.smoke:
+            imported(folder, path, env)
 
 
 if __name__ == "__main__":
