@@ -18,7 +18,8 @@ import pytest
 
 from btlog.events import GAP_SCOPE, BlackboardWrite, Gap, StatusChange
 from btlog.record.reader import open_recording
-from btlog.sources.attach import AttachOptions, AttachResult, attach
+from btlog.sources.attach import AttachHooks, AttachOptions, AttachResult, attach
+from btlog.sources.builder import RecordingBuilder
 from btlog.status import Status
 from tests.cli_support import btlog
 from tests.fuzz_support import assert_contract, run_cli
@@ -400,3 +401,26 @@ def test_the_viewer_tells_each_gap_and_links_to_its_moment(tmp_path: Path) -> No
         link.click()
         page.wait_for_selector('.pane[data-run="0"][data-count="2"]', timeout=15000)
         page.close()
+
+
+class _SlowRecording(AttachHooks):
+    """Takes ``seconds`` after each poll, as recording a big reply does."""
+
+    def __init__(self, seconds: float) -> None:
+        self.seconds = seconds
+
+    def on_poll(self, builder: RecordingBuilder, t_ns: int) -> None:
+        time.sleep(self.seconds)
+
+
+def test_polls_start_every_interval_however_long_a_reply_takes_to_record(tmp_path) -> None:
+    """A poll starts ``poll_interval`` after the one before started, not after it was
+    recorded: 2 s at 0.1 s a poll, each taking 0.07 s, make about 20 polls (about 12
+    if the wait came after the recording), so a busy attach keeps up with a publisher
+    that keeps only 1,000 transitions between two polls."""
+    options = dataclasses.replace(FAST, poll_interval=0.1, duration=2.0)
+    with FakePublisher(XML) as publisher:
+        result = attach(
+            publisher.endpoint, tmp_path / "slow.mcap", options, hooks=_SlowRecording(0.07)
+        )
+    assert 16 <= result.polls <= 22, result.polls

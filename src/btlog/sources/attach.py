@@ -1,10 +1,11 @@
 """Record a running BT.CPP process live (``btlog attach``), through ``btlog.sources.groot2``.
 
 btlog asks for the tree (``T``), starts the publisher's recording (``r start``), then
-polls the transitions (``t``) every ``poll_interval`` seconds and, with ``blackboard``,
-the blackboards (``B``) every ``blackboard_interval``: each change of an entry is
-recorded as a write (no writer: the protocol has none), stamped with the time of the
-last transition before the poll that saw it. Times are the publisher's, µs since its
+polls the transitions (``t``) every ``poll_interval`` seconds (a poll starts on time
+however long the one before took to record, at once when it took longer) and, with
+``blackboard``, the blackboards (``B``) every ``blackboard_interval``: each change of an
+entry is recorded as a write (no writer: the protocol has none), stamped with the time
+of the last transition before the poll that saw it. Times are the publisher's, µs since its
 ``r start``; btlog's own clock for the run (gaps, live questions) is a monotonic clock
 started when the publisher answered ``r start``.
 
@@ -53,7 +54,7 @@ from btlog.sources.builder import (
     wall_start,
 )
 from btlog.sources.groot2 import BUFFER_LIMIT, BadReply, Groot2Client, Silent, Transitions
-from btlog.status import IDLE, Status
+from btlog.status import IDLE
 from btlog.tree.model import SUBTREE, Tree
 from btlog.tree.registry import Registry
 
@@ -205,10 +206,13 @@ class _Attachment:
         """Poll until the duration has passed, ``stop`` is set, Ctrl-C or the end."""
         self.stop = stop
         options = self.options
-        next_blackboard = self.began
+        next_blackboard = next_poll = self.began
         next_flush = self.began + options.flush_interval
         try:
             while True:
+                # polls start every poll_interval, however long recording a reply takes
+                # (a publisher keeps only BUFFER_LIMIT transitions between two polls)
+                next_poll += options.poll_interval
                 self._poll_transitions()
                 now = time.monotonic()
                 if options.blackboard and now >= next_blackboard:
@@ -218,7 +222,9 @@ class _Attachment:
                 if now >= next_flush:  # crash safety even while the tree is idle
                     self.builder.flush()
                     next_flush = now + options.flush_interval
-                if self._wait(options.poll_interval):
+                now = time.monotonic()
+                next_poll = max(next_poll, now)  # late: poll at once, without a burst after
+                if self._wait(next_poll - now):
                     return
         except (KeyboardInterrupt, _Ended):
             return
@@ -260,32 +266,34 @@ class _Attachment:
         """The reply's transitions, and the gaps it shows."""
         before = self.last_transition_ns
         where = f"{self.client.endpoint}: a transitions reply"
+        builder, offset = self.builder, self.offset_ns
+        nodes, transition = builder.tree.nodes, builder.transition
         kept = 0
         try:
             for t_us, uid, status in decode_records(reply.records, where):
-                t_ns = self.offset_ns + t_us * 1000
+                t_ns = offset + t_us * 1000
                 if kept == 0 and reply.full:
                     self.result.full_polls += 1
                     self._gap(before, t_ns, _FULL)
-                self._transition(t_ns, uid, status, where)
+                if uid not in nodes:
+                    raise SourceError(f"{where} names node uid {uid}, which the tree does not have")
+                transition(t_ns, uid, status)
                 kept += 1
         except SourceError as error:  # a record naming no node, or a status out of range
+            if kept:
+                self.last_transition_ns = builder.last_t_ns
             lost = len(reply) - kept
             why = f"{_what(error)}: the {lost} transitions from there on are lost"
             self._gap(self.last_transition_ns, self.now_ns(), why)
             return
+        if kept:
+            self.last_transition_ns = builder.last_t_ns
         if reply.cut:
             why = (
                 f"a transitions reply ended inside a record ({reply.cut} of 9 bytes): "
                 "the transition it cut is lost"
             )
             self._gap(self.last_transition_ns, self.now_ns(), why)
-
-    def _transition(self, t_ns: int, uid: int, status: Status, where: str) -> None:
-        if uid not in self.builder.tree.nodes:
-            raise SourceError(f"{where} names node uid {uid}, which the tree does not have")
-        self.builder.transition(t_ns, uid, status)
-        self.last_transition_ns = self.builder.last_t_ns
 
     # -- blackboards -------------------------------------------------------------------
     def _poll_blackboard(self) -> None:

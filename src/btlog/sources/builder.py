@@ -317,7 +317,8 @@ class RecordingBuilder:
         has it) is checked against the status this stream gave the node."""
         if uid not in self._status:
             raise SourceError(f"{self.source.file}: node uid {uid} is not in the tree")
-        t_ns = self._clamp(t_ns)
+        if t_ns < self._last_t or t_ns > self._latest_t:  # the common case costs no call
+            t_ns = self._clamp(t_ns)
         old = self._status[uid]
         if prev is not None and prev != old:
             self._prev_mismatch += 1
