@@ -163,17 +163,19 @@ def rewrite(source: Path, target: Path, change) -> Path:
     return write_messages(target, stored_metadata(source), messages)
 
 
-def test_rows_naming_unknown_nodes_are_refused(recording, tmp_path):
+@pytest.mark.parametrize("uid", [999, -3, 0])
+def test_rows_naming_unknown_nodes_are_refused(recording, tmp_path, uid):
+    """Above the tree's uids, below them (the check by range), and 0 (no node's uid)."""
     path, _log = recording
 
     def stray(rows: list[list]) -> list[list]:
         for row in rows:
             if row[0] == 40:
-                row[3] = 999
+                row[3] = uid
         return rows
 
     crafted = rewrite(path, tmp_path / "stray.mcap", stray)
-    with pytest.raises(ReplayError, match=r"stray\.mcap: event seq 40 is about node uid 999"):
+    with pytest.raises(ReplayError, match=rf"stray\.mcap: event seq 40 is about node uid {uid}\b"):
         open_runs(crafted, cache=False)
 
 

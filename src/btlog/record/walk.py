@@ -32,7 +32,7 @@ import mmap
 import os
 import struct
 import zlib
-from collections.abc import Iterator
+from collections.abc import Iterable, Iterator
 from contextlib import contextmanager
 from dataclasses import dataclass, field
 from io import BytesIO
@@ -57,6 +57,8 @@ _U16 = struct.Struct("<H")
 #: A footer record: opcode, length (20), summary start, summary offset start, summary CRC.
 _FOOTER = struct.Struct("<BQQQI")
 _KNOWN = frozenset(int(opcode) for opcode in Opcode)
+#: The pseudo-opcode of a chunk's uncompressed records given as one item (``records``).
+OPENED_CHUNK = -1
 #: The records ``parse`` builds (the others, indexes and summary records, are skipped).
 _PARSED: dict[int, Any] = {
     Opcode.HEADER: Header,
@@ -196,51 +198,65 @@ def top_records(data: mmap.mmap | bytes, size: int, walk: Walk) -> Iterator[tupl
     walk.truncated = True
 
 
-def records(data: mmap.mmap | bytes, size: int, walk: Walk) -> Iterator[tuple[int, Any, int, int]]:
+def records(
+    data: mmap.mmap | bytes, size: int, walk: Walk, opened: bool = False
+) -> Iterator[tuple[int, Any, int, int]]:
     """``(opcode, buffer, body, end)`` of every record of the file, the records inside
     each chunk instead of the chunk; a damaged chunk is skipped with a warning.
 
     The summary's schemas and channels come first (after the header) when the file has
     a sound summary (and the summary section is then not walked again); a message of a
-    channel not yet seen is held back and comes right after its channel's record."""
+    channel not yet seen is held back and comes right after its channel's record.
+
+    ``opened``: a chunk of a file with a sound summary comes as one item,
+    ``(OPENED_CHUNK, records, 0, len(records))``, its uncompressed records for the
+    caller to walk (``inner_records``, or a loop of its own that cuts millions of
+    messages without a generator step each); every channel is then known already, so
+    nothing is held back: a message of a channel the file never defines is the
+    caller's to skip. Without a sound summary, chunks come record by record as usual."""
     state = _summary(data, size)
     summary = state if isinstance(state, tuple) else None
     known: set[int] = set()
     held: dict[int, list[bytes]] = {}
     primed = summary is None
     in_summary = False
-    for opcode, buffer, body, end in _file_records(data, size, walk):
-        if in_summary:  # given already, first (or damaged: not used)
-            continue
-        if not primed:  # the summary's schemas and channels, after the header
-            primed = True
-            if opcode == Opcode.HEADER:
-                yield opcode, buffer, body, end
-            for found in _summary_records(data, summary or (0, 0)):
-                if found[0] == Opcode.CHANNEL:
-                    known.add(_U16.unpack_from(data, found[1])[0])
-                yield found[0], data, found[1], found[2]
-            if opcode == Opcode.HEADER:
+    for item in _file_records(data, size, walk, opened):
+        if item[0] == OPENED_CHUNK and summary is None:
+            walked: Iterable[tuple[int, Any, int, int]] = inner_records(item[1])
+        else:
+            walked = (item,)
+        for opcode, buffer, body, end in walked:
+            if in_summary:  # given already, first (or damaged: not used)
                 continue
-        in_summary = opcode == Opcode.DATA_END and state is not False
-        if in_summary and state is True:
-            walk.warnings.append(
-                f"{walk.path}: the summary after byte {body - HEAD.size} fails its CRC; "
-                "read without it"
-            )
-        walk.summary = walk.summary or opcode == Opcode.DATA_END
-        if end - body >= 2 and opcode in (Opcode.MESSAGE, Opcode.CHANNEL):
-            (channel,) = _U16.unpack_from(buffer, body)
-            if opcode == Opcode.MESSAGE and channel not in known:
-                held.setdefault(channel, []).append(bytes(buffer[body:end]))
+            if not primed:  # the summary's schemas and channels, after the header
+                primed = True
+                if opcode == Opcode.HEADER:
+                    yield opcode, buffer, body, end
+                for found in _summary_records(data, summary or (0, 0)):
+                    if found[0] == Opcode.CHANNEL:
+                        known.add(_U16.unpack_from(data, found[1])[0])
+                    yield found[0], data, found[1], found[2]
+                if opcode == Opcode.HEADER:
+                    continue
+            in_summary = opcode == Opcode.DATA_END and state is not False
+            if in_summary and state is True:
+                walk.warnings.append(
+                    f"{walk.path}: the summary after byte {body - HEAD.size} fails its CRC; "
+                    "read without it"
+                )
+            walk.summary = walk.summary or opcode == Opcode.DATA_END
+            if end - body >= 2 and opcode in (Opcode.MESSAGE, Opcode.CHANNEL):
+                (channel,) = _U16.unpack_from(buffer, body)
+                if opcode == Opcode.MESSAGE and channel not in known:
+                    held.setdefault(channel, []).append(bytes(buffer[body:end]))
+                    continue
+                yield opcode, buffer, body, end
+                if opcode == Opcode.CHANNEL:
+                    known.add(channel)
+                    for message in held.pop(channel, ()):
+                        yield Opcode.MESSAGE, message, 0, len(message)
                 continue
             yield opcode, buffer, body, end
-            if opcode == Opcode.CHANNEL:
-                known.add(channel)
-                for message in held.pop(channel, ()):
-                    yield Opcode.MESSAGE, message, 0, len(message)
-            continue
-        yield opcode, buffer, body, end
     walk.chunk = None
     if held:
         count = sum(len(messages) for messages in held.values())
@@ -250,10 +266,11 @@ def records(data: mmap.mmap | bytes, size: int, walk: Walk) -> Iterator[tuple[in
 
 
 def _file_records(
-    data: mmap.mmap | bytes, size: int, walk: Walk
+    data: mmap.mmap | bytes, size: int, walk: Walk, opened: bool = False
 ) -> Iterator[tuple[int, Any, int, int]]:
     """The records of the file in file order, chunks opened (``walk.chunk`` tells which
-    chunk the records come from)."""
+    chunk the records come from); ``opened``: each chunk's records as one
+    ``OPENED_CHUNK`` item (see ``records``)."""
     for opcode, body, end in top_records(data, size, walk):
         if opcode != Opcode.CHUNK:
             walk.chunk = None
@@ -265,7 +282,10 @@ def _file_records(
             walk.drop(body - HEAD.size, end - body + HEAD.size, f"chunk: {error}")
             continue
         walk.chunk = body - HEAD.size
-        yield from inner_records(buffer)
+        if opened:
+            yield OPENED_CHUNK, buffer, 0, len(buffer)
+        else:
+            yield from inner_records(buffer)
         walk.chunk = None
 
 

@@ -28,7 +28,7 @@ from mcap.records import Channel
 from btlog.record import columns
 from btlog.record import format as fmt
 from btlog.record.reader import seq_of
-from btlog.record.walk import MESSAGE_HEAD, Walk, mapped, records
+from btlog.record.walk import HEAD, MESSAGE_HEAD, OPENED_CHUNK, Walk, mapped, records
 
 _EVENTS_HEAD = b'{"tick":'
 _STATUS_KEY = b',"status":['
@@ -36,6 +36,7 @@ _WRITES_KEY = b'],"writes":['
 _TICKS_HEAD = b'{"ticks":['
 _TAIL = b"]}"
 _CHANNEL_ID = struct.Struct("<H")
+_MESSAGE = int(Opcode.MESSAGE)
 #: Bytes of rows gathered before they are handed to the loaders (while the walk goes on).
 BATCH_BYTES = 48 << 20
 
@@ -52,6 +53,17 @@ class Columns:
 
     def __post_init__(self) -> None:
         self.data = [bytearray() for _ in self.layout]
+        self._widths = [struct.calcsize(code) for _name, code in self.layout]
+        self._row_bytes = sum(self._widths)
+
+    def append(self, view: memoryview, start: int, count: int) -> None:
+        """Append ``count`` rows whose columns lie one after the other from ``start``."""
+        for column, width in zip(self.data, self._widths, strict=True):
+            stop = start + width * count
+            column += view[start:stop]
+            start = stop
+        self.count += count
+        self.size += self._row_bytes * count
 
     def add(self, buffer: bytes, message: columns.Message) -> None:
         """Append the columns of ``message`` (located in ``buffer``)."""
@@ -119,11 +131,18 @@ class McapScan:
         self.ticks_channel: bytes | None = None
         self.batch = RowBatch()
         self.on_batch = on_batch
+        #: messages of channels the file never defines (opened chunks: ``records``)
+        self.unknown_channel = 0
 
     def run(self) -> Collected:
         """Scan the whole file; the last batch is handed over too."""
         with mapped(self.path) as (data, size):
-            self._scan(records(data, size, self.out.walk))
+            self._scan(records(data, size, self.out.walk, opened=True))
+        if self.unknown_channel:
+            self.out.walk.warnings.append(
+                f"{self.path}: {self.unknown_channel} messages of channels the file never "
+                "defines skipped"
+            )
         if self.batch:
             self.on_batch(self.batch)
             self.batch = RowBatch()
@@ -132,33 +151,89 @@ class McapScan:
         return self.out
 
     def _scan(self, walked: Iterator[tuple[int, Any, int, int]]) -> None:
-        """The records of the file: the events messages are cut here, inline; this loop
-        runs once per message of the run."""
-        message, channel, metadata = Opcode.MESSAGE, Opcode.CHANNEL, Opcode.METADATA
+        """The records of the file; an opened chunk's are cut by ``_chunk``."""
         for opcode, buffer, body, end in walked:
-            if opcode == message:
-                if type(buffer) is not bytes:  # a message outside chunks: rare, copied
-                    buffer, body, end = buffer[body:end], 0, end - body
-                channel_id = buffer[body : body + 2]
-                if channel_id == self.events_channel:
-                    self._events(buffer, body + MESSAGE_HEAD, end)
-                elif channel_id == self.ticks_channel and self._binary_ticks(
-                    buffer, body + MESSAGE_HEAD, end
+            if opcode == OPENED_CHUNK:
+                self._chunk(buffer)
+            else:
+                self._record(opcode, buffer, body, end)
+
+    def _chunk(self, buffer: bytes) -> None:
+        """The records of an opened chunk. This loop runs once per message of the run, so
+        a binary events or ticks message is cut right here, inline (its head read, its
+        columns appended); any other record goes to ``_record``."""
+        head, message_head = HEAD.unpack_from, columns.HEAD.unpack_from
+        events, ticks = self.events_channel, self.ticks_channel
+        view, position, size = memoryview(buffer), 0, len(buffer)
+        batch = self.batch
+        status_columns, tick_columns = batch.status_columns, batch.tick_columns
+        while position + HEAD.size <= size:
+            opcode, length = head(buffer, position)
+            body = position + HEAD.size
+            end = position = body + length
+            if end > size:
+                return
+            if opcode == _MESSAGE and end - body >= MESSAGE_HEAD + columns.HEAD.size:
+                channel = buffer[body : body + 2]
+                start = body + MESSAGE_HEAD
+                rows = start + columns.HEAD.size
+                magic, count, written, flags, _tick = message_head(buffer, start)
+                stop = rows + count * columns.EVENT_ROW_BYTES
+                cut = True
+                if channel == events and magic == columns.EVENTS_MAGIC and stop + written == end:
+                    status_columns.append(view, rows, count)
+                    if written > 2:  # ``[[…],[…]]``: the rows without the brackets
+                        batch.writes.append(view[stop + 1 : end - 1])
+                elif (
+                    channel == ticks
+                    and magic == columns.TICKS_MAGIC
+                    and not flags & columns.TEARDOWN
+                    and not written
+                    and rows + count * columns.TICK_ROW_BYTES == end
                 ):
-                    pass
-                else:
-                    self._message(buffer, body, end)
-                if self.batch.size >= BATCH_BYTES:
-                    self.on_batch(self.batch)
-                    self.batch = RowBatch()
-            elif opcode == channel:
-                found = self.out.walk.parse(opcode, buffer, body, end)
-                if found is not None:
-                    self._channel(found)
-            elif opcode == metadata and self.out.metadata is None:
-                record = self.out.walk.parse(opcode, buffer, body, end)
-                if record is not None and record.name == fmt.METADATA_NAME:
-                    self.out.metadata = record.metadata
+                    tick_columns.append(view, rows, count)
+                else:  # another message, or one that does not check out (said there)
+                    cut = False
+                if cut:
+                    if status_columns.size + tick_columns.size >= BATCH_BYTES:
+                        self._hand_over()
+                        batch = self.batch
+                        status_columns, tick_columns = batch.status_columns, batch.tick_columns
+                    continue
+            self._record(opcode, buffer, body, end)
+            events, ticks = self.events_channel, self.ticks_channel
+            batch = self.batch
+            status_columns, tick_columns = batch.status_columns, batch.tick_columns
+
+    def _hand_over(self) -> None:
+        """Hand the batch over and start a new one."""
+        self.on_batch(self.batch)
+        self.batch = RowBatch()
+
+    def _record(self, opcode: int, buffer: Any, body: int, end: int) -> None:
+        """One record, as the walk (or ``_chunk``) gives it."""
+        if opcode == _MESSAGE:
+            if type(buffer) is not bytes:  # a message outside chunks: rare, copied
+                buffer, body, end = buffer[body:end], 0, end - body
+            channel_id = buffer[body : body + 2]
+            if channel_id == self.events_channel:
+                self._events(buffer, body + MESSAGE_HEAD, end)
+            elif channel_id == self.ticks_channel and self._binary_ticks(
+                buffer, body + MESSAGE_HEAD, end
+            ):
+                pass
+            else:
+                self._message(buffer, body, end)
+            if self.batch.size >= BATCH_BYTES:
+                self._hand_over()
+        elif opcode == Opcode.CHANNEL:
+            found = self.out.walk.parse(opcode, buffer, body, end)
+            if found is not None:
+                self._channel(found)
+        elif opcode == Opcode.METADATA and self.out.metadata is None:
+            record = self.out.walk.parse(opcode, buffer, body, end)
+            if record is not None and record.name == fmt.METADATA_NAME:
+                self.out.metadata = record.metadata
 
     def _events(self, buffer: bytes, start: int, end: int) -> None:
         if buffer[start : start + 4] == columns.EVENTS_MAGIC:
@@ -205,6 +280,9 @@ class McapScan:
 
     def _message(self, buffer: bytes, body: int, end: int) -> None:
         topic = self.topics.get(_CHANNEL_ID.unpack_from(buffer, body)[0])
+        if topic is None:
+            self.unknown_channel += 1
+            return
         payload = bytes(buffer[body + MESSAGE_HEAD : end])
         out = self.out
         if topic == fmt.TICKS_TOPIC:
