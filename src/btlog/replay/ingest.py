@@ -206,7 +206,7 @@ def _check_consistency(
     looks gap-free (the sum of a hash of every seq equals that of ``0..last``), with a
     ``GROUP BY`` only for a run with gaps."""
     params: dict[str, Any] = {"run_id": run_id}
-    stray = first_row(con, _stray_query(con, params), params)
+    stray = first_row(con, *_stray_query(con, params))
     if stray is not None:
         raise RecordingError(
             f"{name}: event seq {stray[0]} is about node uid {stray[1]}, "
@@ -229,7 +229,9 @@ def _check_consistency(
         raise RecordingError(f"{name}: two events have seq {twice[0]}")
 
 
-def _stray_query(con: duckdb.DuckDBPyConnection, params: dict[str, Any]) -> str:
+def _stray_query(
+    con: duckdb.DuckDBPyConnection, params: dict[str, Any]
+) -> tuple[str, dict[str, Any]]:
     """The query of a status change of a node the tree does not have. A tree's uids are
     usually ``lo..hi`` without a hole: then a stray uid is one outside that range, which
     the row groups' own min and max answer for most of the table without reading it
@@ -240,11 +242,12 @@ def _stray_query(con: duckdb.DuckDBPyConnection, params: dict[str, Any]) -> str:
         params,
     )
     if count and hi - lo + 1 == count:
-        params.update(lo=lo, hi=hi)
-        return """SELECT seq, uid FROM transitions WHERE run_id = $run_id
+        query = """SELECT seq, uid FROM transitions WHERE run_id = $run_id
             AND (uid < $lo OR uid > $hi) LIMIT 1"""
-    return """SELECT seq, uid FROM transitions t WHERE run_id = $run_id AND NOT EXISTS
+        return query, {**params, "lo": lo, "hi": hi}
+    query = """SELECT seq, uid FROM transitions t WHERE run_id = $run_id AND NOT EXISTS
         (SELECT 1 FROM nodes n WHERE n.run_id = $run_id AND n.uid = t.uid) LIMIT 1"""
+    return query, params
 
 
 def _counts(con: duckdb.DuckDBPyConnection, run_id: str) -> tuple[int, int, int]:

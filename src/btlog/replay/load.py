@@ -171,7 +171,7 @@ def _load_columns(con: duckdb.DuckDBPyConnection, run_id: str, table: str, batch
     """Binary columns into ``table``: each an Arrow array over its bytes (no copy); a
     status column becomes the ENUM's codes once its values are checked."""
     arrays = {}
-    for (name, code), data in zip(batch.layout, batch.data, strict=True):
+    for (name, code), data in zip(batch.layout, batch.data(), strict=True):
         array = pa.Array.from_buffers(_ARROW_TYPES[code], batch.count, [None, pa.py_buffer(data)])
         if name.endswith("status"):
             low, high = pa_compute.min_max(array).values()
