@@ -11,9 +11,13 @@ from __future__ import annotations
 import json
 from pathlib import Path
 
+import pytest
+
 from btlog.record.reader import Recording, open_recording
 from btlog.record.recorder import start_time_ns
 from btlog.runner import RunConfig, execute
+from btlog.sources.btcpp_fbl import read_fbl
+from btlog.sources.builder import SourceError
 from btlog.status import Status
 from btlog.tree.model import Tree
 from tests.cli_support import ROOT, assert_bad_input, btlog
@@ -149,3 +153,26 @@ def test_damaged_fbl_files_are_refused_naming_the_byte_or_read_to_the_cut(tmp_pa
     assert_bad_input(btlog("import", "status.fbl", cwd=tmp_path), "status.fbl",
                      f"byte {4 + size}", "status 9")  # fmt: skip
     assert not (tmp_path / "status.mcap").exists()
+
+
+def test_transitions_are_read_in_blocks_with_the_same_result_and_error_bytes(tmp_path):
+    """The transitions are read a block at a time (the import holds none of them): blocks
+    of 4 give what one read gives; a bad status in a later block and a file cut while it
+    is read are named by their byte."""
+    run = recorded(tmp_path)
+    data = fbl_of(run, tmp_path / "nav.fbl")
+    log = read_fbl(tmp_path / "nav.fbl")
+    whole = list(log.transitions())
+    assert len(whole) == len(log) == len(run.transitions) > 4 * 3
+    assert list(log.transitions(block=4)) == whole
+    at = log.records_offset + 9 * 12
+    (tmp_path / "bad.fbl").write_bytes(data[: at + 11] + b"\x07" + data[at + 12 :])
+    seen: list[tuple] = []
+    with pytest.raises(SourceError, match=rf"bad\.fbl: byte {at}: status 7 is not 0-3"):
+        seen.extend(read_fbl(tmp_path / "bad.fbl").transitions(block=4))
+    assert seen == whole[:9]
+    with open(tmp_path / "nav.fbl", "r+b") as stream:
+        stream.truncate(log.records_offset + 6 * 12)
+    cut_at = log.records_offset + 6 * 12
+    with pytest.raises(SourceError, match=rf"nav\.fbl: byte {cut_at}: the file was cut while read"):
+        list(log.transitions(block=4))

@@ -32,6 +32,7 @@ from __future__ import annotations
 
 import os
 import struct
+from collections.abc import Iterator
 from dataclasses import dataclass, field
 from pathlib import Path
 
@@ -87,35 +88,56 @@ class HeaderNode:
     ports: list[tuple[str, str]]
 
 
+#: Transitions read at a time: the import's memory does not grow with the file.
+BLOCK_RECORDS = 65536
+
+
 @dataclass
 class FblLog:
-    """A parsed ``.fbl``: the header's tree (nodes in pre-order from the root, each
-    type's kind and ports) and the raw transitions."""
+    """A parsed ``.fbl`` header: the tree (nodes in pre-order from the root, each type's
+    kind and ports) and where the transitions lie; they are read when iterated."""
 
     file: str
     nodes: list[HeaderNode]
     kinds: dict[str, int]
     ports: dict[str, list[tuple[str, int]]]
-    records: bytes
+    count: int
     records_offset: int
     trailing: int
     warnings: list[str] = field(default_factory=list)
 
     def __len__(self) -> int:
-        return len(self.records) // RECORD.size
+        return self.count
 
-    def transitions(self) -> list[tuple[int, int, Status, Status]]:
-        """``(µs of the logger's clock, header uid, previous, new status)`` of each
-        record, in file order (``SourceError`` naming the record's byte otherwise)."""
+    def transitions(self, block: int = BLOCK_RECORDS) -> Iterator[tuple[int, int, Status, Status]]:
+        """``(µs of the logger's clock, header uid, previous, new status)`` of each whole
+        record, in file order, read ``block`` records at a time (``SourceError`` naming
+        the record's byte otherwise)."""
         statuses = tuple(Status)[:4]
-        out = []
-        for index, (sec, usec, uid, prev, new) in enumerate(RECORD.iter_unpack(self.records)):
-            if not (0 <= prev < 4 and 0 <= new < 4):
-                offset = self.records_offset + index * RECORD.size
-                bad = prev if not 0 <= prev < 4 else new
-                raise SourceError(f"{self.file}: byte {offset}: status {bad} is not 0-3")
-            out.append((sec * 1_000_000 + usec, uid, statuses[prev], statuses[new]))
-        return out
+        try:
+            with open(self.file, "rb") as stream:
+                stream.seek(self.records_offset)
+                for first in range(0, self.count, block):
+                    want = min(block, self.count - first) * RECORD.size
+                    data = stream.read(want)
+                    whole = memoryview(data)[: len(data) - len(data) % RECORD.size]
+                    for index, (sec, usec, uid, prev, new) in enumerate(
+                        RECORD.iter_unpack(whole), first
+                    ):
+                        if not (0 <= prev < 4 and 0 <= new < 4):
+                            offset = self.records_offset + index * RECORD.size
+                            bad = prev if not 0 <= prev < 4 else new
+                            raise SourceError(
+                                f"{self.file}: byte {offset}: status {bad} is not 0-3"
+                            )
+                        yield sec * 1_000_000 + usec, uid, statuses[prev], statuses[new]
+                    if len(data) < want:
+                        offset = self.records_offset + first * RECORD.size + len(data)
+                        raise SourceError(
+                            f"{self.file}: byte {offset}: the file was cut while read"
+                        )
+        except OSError as error:
+            raise SourceError(f"{self.file}: cannot read the file: {error.strerror}") from None
 
 
 class _Damaged(ValueError):
@@ -204,30 +226,31 @@ class _Table:
 
 
 def read_fbl(path: str | os.PathLike) -> FblLog:
-    """Parse a ``.fbl`` file (``SourceError`` naming the file and the damaged byte)."""
+    """Parse a ``.fbl`` file's header (``SourceError`` naming the file and the damaged
+    byte); its transitions are read when ``FblLog.transitions`` is iterated."""
     file = os.fspath(path)
     try:
-        data = Path(path).read_bytes()
+        with open(path, "rb") as stream:
+            length = os.fstat(stream.fileno()).st_size
+            head = stream.read(4)
+            if length < 8:
+                raise SourceError(f"{file}: {length} bytes: too short for a FileLogger header")
+            (size,) = struct.unpack("<i", head)
+            if not 8 <= size <= length - 4:
+                raise SourceError(
+                    f"{file}: byte 0: header size {size} does not fit in the file ({length} bytes)"
+                )
+            buffer = _Buffer(stream.read(size))
     except OSError as error:
         raise SourceError(f"{file}: cannot read the file: {error.strerror}") from None
-    if len(data) < 8:
-        raise SourceError(f"{file}: {len(data)} bytes: too short for a FileLogger header")
-    (size,) = struct.unpack_from("<i", data)
-    if not 8 <= size <= len(data) - 4:
-        raise SourceError(
-            f"{file}: byte 0: header size {size} does not fit in the file ({len(data)} bytes)"
-        )
-    buffer = _Buffer(data[4 : 4 + size])
     try:
         nodes, kinds, ports = _header(buffer)
     except _Damaged as error:
         raise SourceError(
             f"{file}: byte {error.offset + 4}: the FileLogger header is damaged ({error})"
         ) from None
-    records = data[4 + size :]
-    trailing = len(records) % RECORD.size
-    return FblLog(file, nodes, kinds, ports, records[: len(records) - trailing], 4 + size,
-                  trailing)  # fmt: skip
+    count, trailing = divmod(length - 4 - size, RECORD.size)
+    return FblLog(file, nodes, kinds, ports, count, 4 + size, trailing)
 
 
 def _header(
@@ -374,28 +397,35 @@ def import_fbl(
     log = read_fbl(path)
     tree = fbl_tree(log, tree_file, registry)
     uids = {node.uid: index for index, node in enumerate(log.nodes, 1)}
-    changes = []
-    for index, (t_us, uid, prev, new) in enumerate(log.transitions()):
-        if uid not in uids:
-            offset = log.records_offset + index * RECORD.size
-            raise SourceError(f"{log.file}: byte {offset}: node uid {uid} is not in the header")
-        changes.append((t_us, uids[uid], prev, new))
+
+    def changes() -> Iterator[tuple[int, int, Status, Status]]:
+        """The transitions with btlog's uids, read from the file (each pass anew)."""
+        for index, (t_us, uid, prev, new) in enumerate(log.transitions()):
+            if uid not in uids:
+                offset = log.records_offset + index * RECORD.size
+                raise SourceError(f"{log.file}: byte {offset}: node uid {uid} is not in the header")
+            yield t_us, uids[uid], prev, new
+
+    # three passes over the file, none holding the transitions: the state the log began
+    # in, the changes it leaves out, then the recording
     first: dict[int, Status] = {i: Status(n.status) for i, n in enumerate(log.nodes, 1)}
     seen: set[int] = set()
-    for _t, uid, prev, _new in changes:
+    start_us: int | None = None
+    for t_us, uid, prev, _new in changes():
+        start_us = t_us if start_us is None else start_us
         if uid not in seen:
             seen.add(uid)
             first[uid] = prev
     began = state_at_first_entry(tree, first)
-    start_us = changes[0][0] if changes else 0
+    start_us = start_us or 0
     warnings: list[str] = []
     started = wall_start(start_us, log.file, warnings)
-    if changes and start_us < _EPOCH_LIKE_US:
+    if len(log) and start_us < _EPOCH_LIKE_US:
         warnings.append(
             f"{log.file}: the logger's times are relative (its first transition at "
             f"{start_us} µs): the run's wall-clock start is unknown"
         )
-    omitted = omitted_changes(((u, p, n) for _t, u, p, n in changes), began)
+    omitted = omitted_changes(((u, p, n) for _t, u, p, n in changes()), began)
     metadata = {"mid_run": MID_RUN} if began else {}
     if omitted:
         metadata["omitted"] = f"{omitted} {OMITTED}"
@@ -410,7 +440,7 @@ def import_fbl(
         if began:
             count = builder.begin_mid_run(began)
             builder.warnings.append(f"{log.file}: {MID_RUN} ({count} nodes not IDLE)")
-        for t_us, uid, prev, new in changes:
+        for t_us, uid, prev, new in changes():
             builder.logged((t_us - start_us) * 1000, uid, prev, new)
     except BaseException:
         builder.close()
