@@ -17,7 +17,10 @@ The queries: the last/first transition of some nodes to some statuses in a range
 (``starts=True`` keeps only the starts of activations: see ``resumes``), all of them in
 order (bounded by ``limit``), and the (tree, state) after a given number of events; and
 of blackboard writes, the ones a node made in a range and the last write of one entry
-(what grounds a failure in what the failing node reported or read).
+(what grounds a failure in what the failing node reported or read). One hint,
+``read_ahead``, lets a caller that is about to ask many questions about known spans of
+events (the story, a page of failures at a time) have them read at once; it changes no
+answer.
 """
 
 from __future__ import annotations
@@ -25,6 +28,8 @@ from __future__ import annotations
 import copy
 from bisect import bisect_left
 from collections.abc import Collection
+from heapq import merge
+from itertools import islice
 from typing import Any, NamedTuple
 
 from btlog.events import TreeMutation
@@ -145,6 +150,13 @@ class Queries:
         in one pass: the story counts the runs of every subgoal over the whole run)."""
         return {uid: self.count([uid], statuses, lo, hi, starts) for uid in uids}
 
+    def read_ahead(self, spans: Collection[tuple[int, int]]) -> None:
+        """A hint, no question: the next questions are mostly about events in these
+        spans (``lo <= seq < hi`` each), e.g. the story's about a page of failures. A
+        backend may read them at once (``SqlHistory`` keeps them in memory until the
+        next hint; an empty one lets them go); every answer stays the same with or
+        without it. Nothing to do for a history already in memory."""
+
 
 class History(Queries):
     """What the explanations may ask about a run's past (see the module docstring): the
@@ -191,49 +203,51 @@ class WriteIndex:
 
 
 class TransitionIndex(Queries):
-    """Transitions kept in memory by uid (in seq order); a query is a binary search per
-    uid."""
+    """Transitions kept in memory by node, status and whether each starts an activation
+    (in seq order): a query is a binary search per (node, status), whatever the range."""
 
     def __init__(self) -> None:
-        self.by_uid: dict[int, list[Transition]] = {}
-        self._seqs: dict[int, list[int]] = {}
-        self._resumed: set[int] = set()  # seqs of changes out of IDLE that start nothing
+        self._last: dict[int, Transition] = {}  # each node's latest change
+        # (uid, status, starts an activation) -> (seqs, rows)
+        self._keyed: dict[tuple[int, Status, bool], tuple[list[int], list[Transition]]] = {}
 
     def add(self, row: Transition) -> None:
         """Keep one more transition (seqs increase)."""
-        rows = self.by_uid.setdefault(row.uid, [])
-        if row.prev is IDLE and rows and resumes(rows[-1], row):
-            self._resumed.add(row.seq)
+        start = row.prev is IDLE and not resumes(self._last.get(row.uid), row)
+        self._last[row.uid] = row
+        seqs, rows = self._keyed.setdefault((row.uid, row.status, start), ([], []))
+        seqs.append(row.seq)
         rows.append(row)
-        self._seqs.setdefault(row.uid, []).append(row.seq)
 
     def select(
         self, kind: str, uids: Uids, statuses: Statuses, lo: int, hi: int, starts: bool, limit: int
     ) -> list[Transition] | int:
         """See ``Queries.select``."""
-        wanted = set(statuses)
-        resumed = self._resumed
-        groups = []
+        kinds = (True,) if starts else (True, False)
+        keyed = self._keyed
+        slices = []
         for uid in set(uids):
-            rows = self.by_uid.get(uid)
-            if rows:
-                seqs = self._seqs[uid]
-                chosen = rows[bisect_left(seqs, lo) : bisect_left(seqs, hi)]
-                groups.append(
-                    [
-                        r
-                        for r in chosen
-                        if r.status in wanted
-                        and (not starts or (r.prev is IDLE and r.seq not in resumed))
-                    ]
-                )
+            for status in set(statuses):
+                for start in kinds:
+                    found = keyed.get((uid, status, start))
+                    if found is not None:
+                        first, end = bisect_left(found[0], lo), bisect_left(found[0], hi)
+                        if first < end:
+                            slices.append((found[1], first, end))
         if kind == "count":
-            return sum(len(rows) for rows in groups)
+            return sum(end - first for _, first, end in slices)
+        if not slices:
+            return []
         if kind == "last":
-            return [max(rows[-1] for rows in groups if rows)] if any(groups) else []
+            return [max(rows[end - 1] for rows, _, end in slices)]
         if kind == "first":
-            return [min(rows[0] for rows in groups if rows)] if any(groups) else []
-        return sorted(r for rows in groups for r in rows)[:limit]
+            return [min(rows[first] for rows, first, _ in slices)]
+        return list(
+            islice(
+                merge(*(rows[first : min(end, first + limit)] for rows, first, end in slices)),
+                limit,
+            )
+        )
 
 
 class LiveHistory(StateProjection, TransitionIndex, History):

@@ -43,7 +43,14 @@ from btlog.explain.causes import (
 from btlog.explain.handlers import FELL_BACK, PROPAGATED, Reaction, handler_of
 from btlog.explain.hierarchy import subgoals
 from btlog.explain.words import goal_words, is_named, seconds, words
-from btlog.history import ANY_STATUS, COMPLETIONS, History, Transition, activation_end
+from btlog.history import (
+    ANY_STATUS,
+    COMPLETIONS,
+    History,
+    Transition,
+    TransitionIndex,
+    activation_end,
+)
 from btlog.state import State
 from btlog.status import FAILURE, IDLE, RUNNING, SUCCESS
 from btlog.tree.model import SUBTREE, Node, Tree
@@ -53,8 +60,14 @@ MAX_EPISODES = 200
 #: Handled failures examined for episodes (guards included), read this many at a time.
 MAX_EXAMINED = 20_000
 PAGE = 500
+#: Events before each failure of a page that its episode, guard and cause are read
+#: from (``History.read_ahead``: a hint; what lies further back is asked for).
+NEIGHBOURHOOD = 1024
 #: Above this many episodes (or runs of the goal), those that read the same are told once.
 SCREEN = 12
+#: The root's changes per run of the goal read at once (a start, a result, a reset, a
+#: halt: fewer in all but odd runs; beyond, each end is asked for).
+OWN_CHANGES = 4
 
 
 @dataclass
@@ -254,10 +267,18 @@ def goal_runs(tree: Tree, state: State, history: History, limit: int = 10_000) -
     """Every run of the goal (at most ``limit``): each activation of the root."""
     root, now = tree.root.uid, state.seq
     starts = history.transitions([root], ANY_STATUS, 0, now, limit, starts=True)
+    # the root's own changes before its last start, read at once: the end of every run
+    # but the last is found among them (``activation_end`` asks only about the root)
+    before = starts[-1].seq if starts else 0
+    own = TransitionIndex()
+    changes = history.transitions([root], ANY_STATUS, 0, before, OWN_CHANGES * limit)
+    for change in changes:
+        own.add(change)
+    read = changes[-1].seq if len(changes) == OWN_CHANGES * limit else before
     runs = []
     for index, start in enumerate(starts):
         hi = starts[index + 1].seq if index + 1 < len(starts) else now
-        end = activation_end(history, start, hi)
+        end = activation_end(own if hi <= read else history, start, hi)
         if end is None:
             runs.append(GoalRun(start.t_ns, None, None))
         else:
@@ -313,9 +334,16 @@ class _Failures:
         self.examined_all = True
 
     def __iter__(self) -> Iterator[tuple[Transition, bool]]:
+        try:
+            yield from self._pages()
+        finally:
+            self.history.read_ahead([])  # what was read ahead for the last page goes
+
+    def _pages(self) -> Iterator[tuple[Transition, bool]]:
         lo, examined = 0, 0
         while lo < self.now:
             page = self.history.transitions(self.uids, (FAILURE,), lo, self.now, PAGE)
+            self.history.read_ahead([(f.seq - NEIGHBOURHOOD, f.seq + 1) for f in page])
             for failed in page:
                 examined += 1
                 if examined > MAX_EXAMINED:

@@ -5,11 +5,14 @@ order, so DuckDB's zone maps skip the blocks outside ``lo..hi``), and ``state_af
 the read model's snapshot plus a short tail. Nothing is replayed from the start of the
 run, whatever the question. A short run (at most ``IN_MEMORY_EVENTS`` events) has its
 transitions read once, on the first question, into the same in-memory index the live
-history uses: a statement costs about a millisecond, a binary search microseconds.
+history uses: a statement costs about a millisecond, a binary search microseconds. A
+longer run reads into such indexes only the spans a caller says it is about to ask about
+(``read_ahead``: the story's failures, a page at a time).
 """
 
 from __future__ import annotations
 
+from bisect import bisect_right
 from collections.abc import Collection
 from typing import Protocol
 
@@ -43,6 +46,8 @@ class StoredRun(Protocol):
 
 #: Runs with at most this many events are queried in memory (see the module docstring).
 IN_MEMORY_EVENTS = 200_000
+#: At most this many events are read ahead at once (see ``SqlHistory.read_ahead``).
+READ_AHEAD_EVENTS = 1 << 20
 #: The first window (events) looked at for a last/first match, and how it grows.
 FIRST_WINDOW = 1 << 14
 WINDOW_GROWTH = 16
@@ -76,6 +81,7 @@ class SqlHistory(History):
         if in_memory is None:
             in_memory = run.extent.events <= IN_MEMORY_EVENTS
         self._index: TransitionIndex | None = None
+        self._ahead: list[tuple[int, int, TransitionIndex]] = []  # see ``read_ahead``
         if in_memory:
             self._index = TransitionIndex()
             for row in self._rows("", "ORDER BY seq", {}):
@@ -96,6 +102,18 @@ class SqlHistory(History):
             return self._index.select(kind, uids, statuses, lo, hi, starts, limit)
         if not uids or not statuses or lo >= hi:
             return 0 if kind == "count" else []
+        if self._ahead:
+            found = self._read_ahead_select(kind, uids, statuses, lo, hi, starts, limit)
+            if found is not None:
+                return found
+        return self._sql_select(kind, uids, statuses, lo, hi, starts, limit)
+
+    def _sql_select(
+        self, kind: str, uids: Uids, statuses: Statuses, lo: int, hi: int, starts: bool, limit: int
+    ) -> list[Transition] | int:
+        """``select`` as one SQL statement."""
+        if lo >= hi:
+            return 0 if kind == "count" else []
         where = (
             f"AND seq >= $lo AND seq < $hi AND uid IN {_in_list(uids)} "
             f"AND enum_code(status) IN {_in_list([int(s) for s in statuses])}"
@@ -109,6 +127,74 @@ class SqlHistory(History):
             tail = f"ORDER BY seq LIMIT {int(limit)}"
             return [_transition(row) for row in self._rows(where, tail, params)]
         return self._nearest(kind, where, lo, hi)
+
+    def read_ahead(self, spans: Collection[tuple[int, int]]) -> None:
+        """See ``Queries.read_ahead``: the transitions of the spans (merged; at most
+        ``READ_AHEAD_EVENTS`` events, the rest left to SQL) read in one statement into
+        an in-memory index per merged span. A question about a span's events is then
+        answered from its index, and SQL asked only for what lies before the span (a
+        last match or a count reaching back before it) or after it (a first match)."""
+        self._ahead = []
+        if self._index is not None:
+            return
+        merged: list[list[int]] = []
+        budget = READ_AHEAD_EVENTS
+        for lo, hi in sorted((max(0, lo), hi) for lo, hi in spans if hi > max(0, lo)):
+            if merged and lo <= merged[-1][1]:
+                grown = max(merged[-1][1], hi)
+                budget -= grown - merged[-1][1]
+                merged[-1][1] = grown
+            else:
+                merged.append([lo, hi])
+                budget -= hi - lo
+            if budget <= 0:
+                break
+        if not merged:
+            return
+        # each span from one event earlier: whether its first change resumes the halt
+        # right before it (``btlog.history.resumes``) is then known, as in SQL
+        selects = " UNION ALL ".join(
+            f"SELECT {_COLUMNS} FROM {self._table} WHERE run_id = $run_id "
+            f"AND seq >= {int(lo) - 1} AND seq < {int(hi)}"
+            for lo, hi in merged
+        )
+        rows = self.run.con.execute(
+            f"{selects} ORDER BY seq", {"run_id": self.run.stored_id}
+        ).fetchall()
+        position = 0
+        for lo, hi in merged:
+            index = TransitionIndex()
+            while position < len(rows) and rows[position][0] < hi:
+                index.add(_transition(rows[position]))
+                position += 1
+            self._ahead.append((lo, hi, index))
+
+    def _read_ahead_select(
+        self, kind: str, uids: Uids, statuses: Statuses, lo: int, hi: int, starts: bool, limit: int
+    ) -> list[Transition] | int | None:
+        """``select`` from the span read ahead that holds the query's edge (its end for
+        a last match or a count, its start for a first match or all of them), SQL asked
+        for the rest; None when no span holds it."""
+        edge = lo if kind in ("first", "all") else hi - 1
+        at = bisect_right(self._ahead, edge, key=lambda span: span[0]) - 1
+        if at < 0 or edge >= self._ahead[at][1]:
+            return None
+        start, end, index = self._ahead[at]
+        if kind == "all":
+            return index.select(kind, uids, statuses, lo, hi, starts, limit) if hi <= end else None
+        if kind == "first":
+            found = index.select(kind, uids, statuses, lo, min(hi, end), starts, limit)
+            if found or hi <= end:
+                return found
+            return self._sql_select(kind, uids, statuses, end, hi, starts, limit)
+        found = index.select(kind, uids, statuses, max(lo, start), hi, starts, limit)
+        if kind == "count":
+            before = self._sql_select(kind, uids, statuses, lo, start, starts, limit)
+            assert isinstance(found, int) and isinstance(before, int)
+            return found + before
+        if found or lo >= start:
+            return found
+        return self._sql_select(kind, uids, statuses, lo, start, starts, limit)
 
     def counts(
         self, uids: Collection[int], statuses: Statuses, lo: int, hi: int, starts: bool = False
@@ -168,6 +254,11 @@ class SqlHistory(History):
         return found[0] if found else None
 
 
+#: Statuses by value (``Status(value)`` goes through the enum: the hot path of
+#: ``read_ahead``).
+_STATUSES = tuple(Status)
+
+
 def _transition(row: tuple) -> Transition:
     seq, t_ns, uid, prev, status = row
-    return Transition(seq, t_ns, uid, Status(prev), Status(status))
+    return Transition(seq, t_ns, uid, _STATUSES[prev], _STATUSES[status])
