@@ -23,7 +23,9 @@ each figure is what a user meets: wall seconds and the process's peak resident m
    (``btlog export --to btlog``), imported back (``btlog import``), and recorded live
    (``btlog attach --poll 0.0001``) from a Groot2 publisher that replays that file as fast
    as it is polled (``groot2_replay.py``, in a process of its own, 999 transitions a
-   poll); each with its rate and peak RSS, to show whether they stay flat.
+   poll); each with its rate (transitions a second of wall time and of its own CPU time:
+   the second depends less on what else the machine runs) and peak RSS, to show whether
+   they stay flat.
 
     python benchmarks/bench_day.py                     # ~100M events (minutes; GBs of disk)
     python benchmarks/bench_day.py --events 10000000 --import
@@ -43,6 +45,7 @@ import sys
 import tempfile
 import time
 from pathlib import Path
+from typing import NamedTuple
 
 ROOT = Path(__file__).resolve().parent.parent
 #: Events a tick of the benchmark's tree, per action (IDLE→RUNNING, RUNNING→SUCCESS,
@@ -80,8 +83,17 @@ def tree_xml(actions: int) -> str:
     )
 
 
-def measured(args: list[str], env: dict[str, str]) -> tuple[float, int, str]:
-    """Run ``args`` in a child process; (seconds, its peak RSS in bytes, its stdout)."""
+class Measured(NamedTuple):
+    """A child process's wall seconds, peak RSS (bytes), stdout and CPU seconds."""
+
+    seconds: float
+    rss: int
+    out: str
+    cpu: float
+
+
+def measured(args: list[str], env: dict[str, str]) -> Measured:
+    """Run ``args`` in a child process and measure it (exit on failure)."""
     started = time.perf_counter()
     with tempfile.TemporaryFile() as out, tempfile.TemporaryFile() as err:
         child = subprocess.Popen(args, env=env, stdout=out, stderr=err)
@@ -91,10 +103,11 @@ def measured(args: list[str], env: dict[str, str]) -> tuple[float, int, str]:
         if status != 0:
             raise SystemExit(f"{' '.join(args[:4])}… failed: {err.read().decode()[-800:]}")
         out.seek(0)
-        return seconds, usage.ru_maxrss * 1024, out.read().decode()
+        cpu = usage.ru_utime + usage.ru_stime
+        return Measured(seconds, usage.ru_maxrss * 1024, out.read().decode(), cpu)
 
 
-def btlog(*args: str, env: dict[str, str]) -> tuple[float, int, str]:
+def btlog(*args: str, env: dict[str, str]) -> Measured:
     """One ``btlog`` command in a child process (see ``measured``)."""
     return measured([sys.executable, "-m", "btlog.cli.main", *args], env)
 
@@ -106,7 +119,7 @@ def record(folder: Path, name: str, actions: int, ticks: int, env: dict[str, str
     outcomes = folder / "outcomes.yaml"
     outcomes.write_text("default: {status: SUCCESS, ticks: 1}\n")
     path = folder / name
-    seconds, rss, out = btlog(
+    seconds, rss, out, _cpu = btlog(
         "run", str(tree), "--outcomes", str(outcomes), "--max-ticks", str(ticks),
         "-o", str(path), env=env,
     )  # fmt: skip
@@ -127,10 +140,12 @@ def reference(cache: Path, folder: Path, env: dict[str, str]) -> list[tuple[str,
         key=lambda p: -p.stat().st_mtime_ns,
     )
     target = folder / "reference.duckdb"
-    _s, _r, rows = measured([sys.executable, "-c", EXPORT, str(tables), str(target), *TABLES], env)
+    _s, _r, rows, _c = measured(
+        [sys.executable, "-c", EXPORT, str(tables), str(target), *TABLES], env
+    )
     found = []
     for where in (str(target), ":memory:"):
-        seconds, rss, _out = measured(
+        seconds, rss, _out, _cpu = measured(
             [sys.executable, "-c", REFERENCE, str(target), where, *TABLES], env
         )
         found.append(("a file" if where != ":memory:" else "memory", seconds, rss, int(rows)))
@@ -149,9 +164,9 @@ def imported(folder: Path, recording: Path, env: dict[str, str]) -> None:
         f"importing the day (the run as a FileLogger2 .btlog, {log.stat().st_size / 1e6:.0f} MB):"
     )
     line("btlog export --to btlog", exported[0], exported[1])
-    took, rss, out = btlog("import", str(log), "-o", str(back), env=env)
+    took, rss, out, cpu = btlog("import", str(log), "-o", str(back), env=env)
     count = int(re.search(r": (\d+) transitions", out)[1])  # type: ignore[index]
-    line(f"btlog import ({count / took / 1e6:.2f}M transitions/s)", took, rss)
+    line(f"btlog import ({count / took / 1e6:.2f}M/s, {count / cpu / 1e6:.2f}M/CPU-s)", took, rss)
     with socket.socket() as probe:
         probe.bind(("127.0.0.1", 0))
         port = probe.getsockname()[1]
@@ -159,7 +174,7 @@ def imported(folder: Path, recording: Path, env: dict[str, str]) -> None:
     publisher = subprocess.Popen(replay, env=env, stdout=subprocess.PIPE, text=True)
     try:
         assert publisher.stdout is not None and publisher.stdout.readline().strip() == "ready"
-        took, rss, out = btlog(
+        took, rss, out, cpu = btlog(
             "attach", f"tcp://127.0.0.1:{port}", "-o", str(live), "--poll", "0.0001",
             "--timeout", str(ATTACH_TIMEOUT), "--reconnect", "0", env=env,
         )  # fmt: skip
@@ -170,7 +185,7 @@ def imported(folder: Path, recording: Path, env: dict[str, str]) -> None:
     if live_count != count:
         raise SystemExit(f"attach recorded {live_count:,} transitions of {count:,}")
     rate = count / max(took - ATTACH_TIMEOUT, 1e-9) / 1e6
-    line(f"btlog attach ({rate:.2f}M transitions/s, replayed)", took, rss)
+    line(f"btlog attach ({rate:.2f}M/s, {count / cpu / 1e6:.2f}M/CPU-s)", took, rss)
     for path in (log, back, live):
         path.unlink()
 
@@ -210,7 +225,7 @@ def main() -> None:
         cache = folder / "cache"
         env = {**os.environ, "PYTHONPATH": str(ROOT / "src"), "BTLOG_CACHE_DIR": str(cache)}
         small, *_ = record(folder, "small.mcap", args.actions, 10, env)
-        fixed, _rss, _out = btlog("ask", str(small), "--at", "end", "What are you doing?", env=env)
+        fixed, *_ = btlog("ask", str(small), "--at", "end", "What are you doing?", env=env)
 
         saved = folder / "day.events"
         if args.reuse and saved.is_file():
