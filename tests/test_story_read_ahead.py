@@ -86,9 +86,11 @@ def _queries(rng: random.Random, uids: list[int], edges: list[int], end: int):
         yield kind, chosen, statuses, lo, hi, rng.random() < 0.5, rng.choice([1, 3, 50])
 
 
-def test_read_ahead_answers_as_sql(failing) -> None:
-    """Spans read ahead, some starting at a change that resumes the halt right before
-    it: every question, about the nodes that changed there, answers as SQL does."""
+@pytest.mark.parametrize("some", [False, True])
+def test_read_ahead_answers_as_sql(failing, some: bool) -> None:
+    """Spans read ahead (of every node, or of some), some starting at a change that
+    resumes the halt right before it: every question, about the nodes that changed there,
+    answers as SQL does."""
     path, live, _ = failing
     rng = random.Random(7)
     end = live.state.seq
@@ -106,6 +108,6 @@ def test_read_ahead_answers_as_sql(failing) -> None:
     with open_runs(path, cache=False) as database:
         run = database.run(str(path))
         sql, ahead = SqlHistory(run, in_memory=False), SqlHistory(run, in_memory=False)
-        ahead.read_ahead(spans)
+        ahead.read_ahead(spans, uids[::2] if some else None)
         for query in _queries(rng, uids, [e for span in spans for e in span], end):
             assert ahead.select(*query) == sql.select(*query), query

@@ -150,9 +150,12 @@ class Queries:
         in one pass: the story counts the runs of every subgoal over the whole run)."""
         return {uid: self.count([uid], statuses, lo, hi, starts) for uid in uids}
 
-    def read_ahead(self, spans: Collection[tuple[int, int]]) -> None:
+    def read_ahead(
+        self, spans: Collection[tuple[int, int]], uids: Collection[int] | None = None
+    ) -> None:
         """A hint, no question: the next questions are mostly about events in these
-        spans (``lo <= seq < hi`` each), e.g. the story's about a page of failures. A
+        spans (``lo <= seq < hi`` each) and, unless None, these nodes ``uids``, e.g. the
+        story's about a page of failures. A
         backend may read them at once (``SqlHistory`` keeps them in memory until the
         next hint; an empty one lets them go); every answer stays the same with or
         without it. Nothing to do for a history already in memory."""
@@ -213,11 +216,15 @@ class TransitionIndex(Queries):
 
     def add(self, row: Transition) -> None:
         """Keep one more transition (seqs increase)."""
-        start = row.prev is IDLE and not resumes(self._last.get(row.uid), row)
-        self._last[row.uid] = row
-        seqs, rows = self._keyed.setdefault((row.uid, row.status, start), ([], []))
-        seqs.append(row.seq)
-        rows.append(row)
+        seq, _, uid, prev, status = row
+        start = prev is IDLE and not resumes(self._last.get(uid), row)
+        self._last[uid] = row
+        key = (uid, status, start)
+        found = self._keyed.get(key)
+        if found is None:
+            found = self._keyed[key] = ([], [])
+        found[0].append(seq)
+        found[1].append(row)
 
     def select(
         self, kind: str, uids: Uids, statuses: Statuses, lo: int, hi: int, starts: bool, limit: int

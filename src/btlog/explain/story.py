@@ -331,6 +331,11 @@ class _Failures:
             [c.uid for c in handled if not actions_below(c)], (FAILURE,), 0, now
         )
         self.uids = [c.uid for c in handled if actions_below(c)]
+        # what the questions about their failures are about: each such child, what is
+        # below it (the cause, a guard's actions) and its handler (the reaction)
+        self.asked = {
+            n.uid for c in handled if actions_below(c) for n in (c.parent, *c.walk()) if n
+        }
         self.examined_all = True
 
     def __iter__(self) -> Iterator[tuple[Transition, bool]]:
@@ -343,7 +348,8 @@ class _Failures:
         lo, examined = 0, 0
         while lo < self.now:
             page = self.history.transitions(self.uids, (FAILURE,), lo, self.now, PAGE)
-            self.history.read_ahead([(f.seq - NEIGHBOURHOOD, f.seq + 1) for f in page])
+            spans = [(f.seq - NEIGHBOURHOOD, f.seq + 1) for f in page]
+            self.history.read_ahead(spans, self.asked)
             for failed in page:
                 examined += 1
                 if examined > MAX_EXAMINED:

@@ -82,6 +82,7 @@ class SqlHistory(History):
             in_memory = run.extent.events <= IN_MEMORY_EVENTS
         self._index: TransitionIndex | None = None
         self._ahead: list[tuple[int, int, TransitionIndex]] = []  # see ``read_ahead``
+        self._ahead_uids: frozenset[int] | None = None
         if in_memory:
             self._index = TransitionIndex()
             for row in self._rows("", "ORDER BY seq", {}):
@@ -102,7 +103,7 @@ class SqlHistory(History):
             return self._index.select(kind, uids, statuses, lo, hi, starts, limit)
         if not uids or not statuses or lo >= hi:
             return 0 if kind == "count" else []
-        if self._ahead:
+        if self._ahead and (self._ahead_uids is None or self._ahead_uids.issuperset(uids)):
             found = self._read_ahead_select(kind, uids, statuses, lo, hi, starts, limit)
             if found is not None:
                 return found
@@ -128,13 +129,17 @@ class SqlHistory(History):
             return [_transition(row) for row in self._rows(where, tail, params)]
         return self._nearest(kind, where, lo, hi)
 
-    def read_ahead(self, spans: Collection[tuple[int, int]]) -> None:
+    def read_ahead(
+        self, spans: Collection[tuple[int, int]], uids: Collection[int] | None = None
+    ) -> None:
         """See ``Queries.read_ahead``: the transitions of the spans (merged; at most
-        ``READ_AHEAD_EVENTS`` events, the rest left to SQL) read in one statement into
-        an in-memory index per merged span. A question about a span's events is then
-        answered from its index, and SQL asked only for what lies before the span (a
-        last match or a count reaching back before it) or after it (a first match)."""
+        ``READ_AHEAD_EVENTS`` events, the rest left to SQL), of the nodes ``uids`` (or
+        all), read in one statement into an in-memory index per merged span. A
+        question about those nodes and a span's events is then answered from its index,
+        and SQL asked only for what lies before the span (a last match or a count
+        reaching back before it) or after it (a first match)."""
         self._ahead = []
+        self._ahead_uids = None if uids is None else frozenset(uids)
         if self._index is not None:
             return
         merged: list[list[int]] = []
@@ -151,11 +156,12 @@ class SqlHistory(History):
                 break
         if not merged:
             return
+        nodes = "" if uids is None else f" AND uid IN {_in_list(uids or [-1])}"
         # each span from one event earlier: whether its first change resumes the halt
         # right before it (``btlog.history.resumes``) is then known, as in SQL
         selects = " UNION ALL ".join(
             f"SELECT {_COLUMNS} FROM {self._table} WHERE run_id = $run_id "
-            f"AND seq >= {int(lo) - 1} AND seq < {int(hi)}"
+            f"AND seq >= {int(lo) - 1} AND seq < {int(hi)}{nodes}"
             for lo, hi in merged
         )
         rows = self.run.con.execute(
