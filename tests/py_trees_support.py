@@ -11,7 +11,6 @@ from btlog.explain.questions import NODE_INTENTS, QUESTIONS, answer
 from btlog.replay.database import open_runs
 from btlog.replay.sql_history import SqlHistory
 from btlog.sources.py_trees import STATUS, PyTreesRecorder
-from btlog.sources.py_trees_hooks import hooked_uid
 
 PLAIN = [q for intent, q in QUESTIONS.items() if "X" not in q]
 ABOUT_X = [q for intent, q in QUESTIONS.items() if intent in NODE_INTENTS]
@@ -32,11 +31,11 @@ class Seen:
     answers: list[list[str]] = field(default_factory=list)
 
 
-def live_statuses(root: Any) -> dict[int, Any]:
+def live_statuses(root: Any, recorder: PyTreesRecorder) -> dict[int, Any]:
     """Every recorded behaviour's status now, as btlog's (INVALID as IDLE), by uid."""
     found = {}
     for behaviour in root.iterate():
-        uid = hooked_uid(behaviour)
+        uid = recorder.watch.uid_of(behaviour)
         if uid is not None:
             found[uid] = STATUS[behaviour.status]
     return found
@@ -49,7 +48,7 @@ def tick_and_watch(
     assert recorder.history is not None
     for _ in range(ticks):
         tree.tick()
-        seen.statuses.append(live_statuses(tree.root))
+        seen.statuses.append(live_statuses(tree.root, recorder))
         seen.seqs.append(recorder.builder.seq - 1)
         history = recorder.history
         seen.answers.append([answer(history.tree, history.state, q, history).text for q in asked])
@@ -73,3 +72,36 @@ def assert_replay_equals_live(path: Path, seen: Seen, asked: list[str]) -> None:
             assert [answer(tree, state, q, history).text for q in asked] == expected, seq
     finally:
         database.close()
+
+
+class AssignmentSpy:
+    """Every change of ``status`` in a tree, in the order py_trees makes it, seen at the
+    assignment itself: each behaviour gets a subclass of its class (same name) whose
+    ``status`` is a data descriptor noting ``(behaviour, old, new)`` when the value
+    changes. What a recording of the tree must hold, change for change."""
+
+    def __init__(self, root: Any) -> None:
+        self.changes: list[tuple[Any, Any, Any]] = []
+        spied: dict[type, type] = {}
+        descriptor = _Noting(self.changes)
+        for behaviour in root.iterate():
+            cls = type(behaviour)
+            if cls not in spied:
+                spied[cls] = type(cls)(cls.__name__, (cls,), {"status": descriptor})
+            status = behaviour.status
+            behaviour.__class__ = spied[cls]
+            behaviour.__dict__["status"] = status
+
+
+class _Noting:
+    """The ``status`` of a spied behaviour (reads find the instance's dict)."""
+
+    def __init__(self, changes: list[tuple[Any, Any, Any]]) -> None:
+        self.changes = changes
+
+    def __set__(self, behaviour: Any, status: Any) -> None:
+        slots = behaviour.__dict__
+        old = slots.get("status", status)
+        slots["status"] = status
+        if old is not status:
+            self.changes.append((behaviour, old, status))

@@ -125,6 +125,79 @@ def test_simulated_clock_and_mutations(tmp_path: Path) -> None:
     assert recording.metadata["clock"] == "sim"
 
 
+def test_children_changed_on_composites_are_mutations(tmp_path: Path) -> None:
+    """add_child, insert_child, remove_child, replace_child and remove_all_children on a
+    composite, called during the run without the tree's API (here by a pre-tick
+    handler), are recorded as mutations, and what the new behaviours do is recorded like
+    the rest."""
+    seq = py_trees.composites.Sequence("work", memory=False)
+    seq.add_child(py_trees.behaviours.Success("first"))
+    late = py_trees.composites.Selector("late", memory=False)
+    go = py_trees.behaviours.Running("go")
+    late.add_children([py_trees.behaviours.Failure("no"), go])
+
+    def grow() -> None:
+        seq.add_child(late)
+        seq.insert_child(py_trees.behaviours.Success("early"), 0)
+
+    def swap() -> None:
+        seq.replace_child(seq.children[0], py_trees.behaviours.Success("earlier"))
+        late.remove_child(late.children[0])
+
+    steps = [lambda: None, grow, swap, lambda: seq.remove_all_children()]
+    tree = py_trees.trees.BehaviourTree(seq)
+    tree.add_pre_tick_handler(lambda _tree: steps.pop(0)())
+    path = tmp_path / "run.mcap"
+    seen = Seen()
+    with record(tree, path) as recorder:
+        tick_and_watch(tree, recorder, 2, [], seen)
+        assert seen.statuses[1][recorder.watch.uid_of(go)] == RUNNING  # inserted, ran
+        tick_and_watch(tree, recorder, 2, [], seen)
+        assert [n.name for n in recorder.live_history().tree] == ["work"]
+    recording = read_recording(path)
+    ops = [(m.op, m.nodes[0]["name"]) for m in recording.events if isinstance(m, TreeMutation)]
+    assert ops == [
+        ("insert", "late"),
+        ("insert", "early"),
+        ("prune", "early"),
+        ("insert", "earlier"),
+        ("prune", "no"),
+        ("prune", "earlier"),
+        ("prune", "first"),
+        ("prune", "late"),
+    ]
+    assert_replay_equals_live(path, seen, [])
+    assert "add_child" not in vars(seq) and "stop" not in vars(seq)  # given back
+
+
+def test_a_status_set_behind_py_trees_back_is_found_at_the_tick_end(tmp_path: Path) -> None:
+    """A behaviour that writes ``self.status`` itself (py_trees says not to) still
+    leaves the recorded state equal to the tree's after every tick."""
+
+    class Stubborn(py_trees.behaviour.Behaviour):
+        def update(self) -> PtStatus:
+            self.status = PtStatus.FAILURE  # undone by tick(): the tick's result wins
+            return PtStatus.RUNNING
+
+    class Meddler(py_trees.behaviour.Behaviour):
+        def update(self) -> PtStatus:
+            stubborn.status = PtStatus.SUCCESS  # another behaviour's status, no stop()
+            return PtStatus.SUCCESS
+
+    stubborn = Stubborn("stubborn")
+    root = py_trees.composites.Parallel(
+        "both", policy=py_trees.common.ParallelPolicy.SuccessOnAll(), children=[stubborn]
+    )
+    root.add_child(Meddler("meddler"))
+    tree = py_trees.trees.BehaviourTree(root)
+    path = tmp_path / "run.mcap"
+    seen = Seen()
+    with record(tree, path) as recorder:
+        tick_and_watch(tree, recorder, 3, [], seen)
+    assert recorder.swept == 3
+    assert_replay_equals_live(path, seen, [])
+
+
 @pytest.mark.parametrize("answers", [True, False])
 def test_answers_need_the_live_history(tmp_path: Path, answers: bool) -> None:
     tree = preemption_tree()

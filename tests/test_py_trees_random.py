@@ -1,7 +1,8 @@
 """Hypothesis-built py_trees trees with random outcomes: after every tick the statuses
 btlog replays at that tick are those read from the live tree (``root.iterate()``,
 INVALID as IDLE), pre-emption included, and every question answered live is answered
-the same post hoc, from the recording alone."""
+the same post hoc, from the recording alone; the recorded changes are those py_trees
+makes to ``status``, in its order."""
 
 from __future__ import annotations
 
@@ -15,8 +16,15 @@ from hypothesis import strategies as st
 from py_trees.common import OneShotPolicy, ParallelPolicy
 from py_trees.common import Status as PtStatus
 
-from btlog.sources.py_trees import record
-from tests.py_trees_support import Seen, assert_replay_equals_live, questions_about, tick_and_watch
+from btlog.record.reader import open_recording
+from btlog.sources.py_trees import STATUS, record
+from tests.py_trees_support import (
+    AssignmentSpy,
+    Seen,
+    assert_replay_equals_live,
+    questions_about,
+    tick_and_watch,
+)
 
 OUTCOMES = st.sampled_from([PtStatus.SUCCESS, PtStatus.FAILURE, PtStatus.RUNNING])
 LEAF = st.tuples(st.just("leaf"), st.lists(OUTCOMES, max_size=4), OUTCOMES)
@@ -114,3 +122,34 @@ def test_random_py_trees_replay_and_answers(tmp_path_factory, shape, ticks, rng)
     if shape is PREEMPTION:
         assert seen.statuses[2][1].name == "SUCCESS"
         assert seen.statuses[1][5].name == "RUNNING" and seen.statuses[2][5].name == "IDLE"
+
+
+@settings(
+    max_examples=40,
+    deadline=None,
+    suppress_health_check=[HealthCheck.too_slow, HealthCheck.function_scoped_fixture],
+)
+@given(SHAPES, st.integers(1, 10), st.booleans())
+@example(PREEMPTION, 5, True)
+def test_random_py_trees_record_every_change_in_py_trees_order(
+    tmp_path_factory, shape, ticks, interrupt
+) -> None:
+    """The recording holds exactly the changes py_trees makes to ``status``, in its
+    order (a spy on the assignment itself says which), all seen where they are made: the
+    end-of-tick sweep finds nothing left over."""
+    py_trees.blackboard.Blackboard.clear()
+    root = build(shape, itertools.count(1))
+    spy = AssignmentSpy(root)
+    tree = py_trees.trees.BehaviourTree(root)
+    path = Path(tmp_path_factory.mktemp("py_trees")) / "run.mcap"
+    with record(tree, path, answers=False) as recorder:
+        for _ in range(ticks):
+            tree.tick()
+        if interrupt:  # every behaviour stopped between ticks
+            tree.interrupt()
+        uid = recorder.watch.uid_of
+        expected = [(uid(b), STATUS[old], STATUS[new]) for b, old, new in spy.changes]
+    assert recorder.swept == 0
+    recorded = [(c.uid, c.prev, c.status) for c in open_recording(path).transitions]
+    assert recorded == expected
+    assert len(expected) > 0

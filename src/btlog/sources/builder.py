@@ -338,33 +338,32 @@ class RecordingBuilder:
         self._transitions += 1
         self._last_t = self._last_transition_t = t_ns
 
-    def packed(self, changes: list[bytes], times: list[int]) -> None:
+    def packed(self, changes: list[bytes], t_ns: int) -> None:
         """Status changes the source packed itself (``btlog.events.CHANGE`` rows, from
-        ``change_rows``: uid, previous and new status) with their times, in order: a
+        ``change_rows``: uid, previous and new status), in order, all at ``t_ns``: a
         source that knows its ticks (``explicit_ticks``) and watches every change, as
-        py_trees' recorder does. They are handed on as they are; the builder does not
-        follow them (``status_of`` and the tick's root status are then the source's:
-        ``end_tick``)."""
+        py_trees' recorder does (a tick's changes take the tick's time). They are handed
+        on as they are, as one batch the subscribers take untimed (the list is the
+        source's: it may clear it afterwards); the builder does not follow them
+        (``status_of`` and the tick's root status are then the source's: ``end_tick``)."""
         if not changes:
             return
-        last = self._clamp(times[-1])
-        if times[0] < self._last_t:
-            floor = self._last_t
-            times = [t if t >= floor else floor for t in times]
+        t_ns = self._clamp(t_ns)
         batch = self._batch
         if batch is not None:
-            batch.changes.extend(changes)
-            batch.times.extend(times)  # type: ignore[union-attr]
+            self._settle()
+            batch.taker.on_status_batch(self._seq, self._tick, t_ns, changes, None)
+            self._seq += len(changes)
         else:
             tick, status = self._tick, self._status
-            for change, t_ns in zip(changes, times, strict=True):
+            for change in changes:
                 uid, prev, new = CHANGE.unpack(change)
                 status[uid] = Status(new)
                 for subscriber in self._subscribers:
                     subscriber.on_status(self._seq, t_ns, tick, uid, Status(prev), Status(new))
                 self._seq += 1
         self._transitions += len(changes)
-        self._last_t = self._last_transition_t = last
+        self._last_t = self._last_transition_t = t_ns
 
     def write(
         self,

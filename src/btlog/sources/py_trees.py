@@ -14,9 +14,10 @@ INVALID is IDLE, and a change no visitor sees — a RUNNING child of a
 ``Selector(memory=False)`` pre-empted by a higher priority, a child reset by its
 parent's ``stop()`` — is recorded too. Blackboard writes come from py_trees' activity
 stream (the key as py_trees names it, the writer the behaviour owning the client, the
-value as JSON when it can be, else a bounded ``repr``). ``insert_subtree``,
-``prune_subtree`` and ``replace_subtree`` on the tree are recorded as mutations (a
-replacement is a prune then an insert). Times come from the wall clock, or from
+value as JSON when it can be, else a bounded ``repr``). Children put in or taken out of
+a composite — the tree's ``insert_subtree``, ``prune_subtree``, ``replace_subtree``, or
+the composite's own ``add_child``, ``insert_child``, ``remove_child``, ... — are recorded
+as mutations (a replacement is a prune then an insert). Times come from the wall clock, or from
 ``clock`` (seconds, e.g. a simulation's), since the recording started.
 
 The recording is made by the one ``RecordingBuilder`` all importers use, with the ticks
@@ -34,6 +35,7 @@ from importlib import metadata as package_metadata
 from typing import Any
 
 from py_trees import common as pt_common
+from py_trees import composites as pt_composites
 
 from btlog.events import Backlog, Subscriber, change_rows, type_name
 from btlog.explain.questions import Answer, answer
@@ -41,11 +43,9 @@ from btlog.history import LiveHistory
 from btlog.sources.builder import BuildResult, RecordingBuilder, Source
 from btlog.sources.py_trees_hooks import (
     ActivityTap,
-    hook,
-    hooked_uid,
+    TreeWatch,
     recorded_value,
     tap_blackboard,
-    unhook,
     untap_blackboard,
 )
 from btlog.sources.py_trees_tree import behaviours, build_subtree, tree_of
@@ -60,6 +60,8 @@ STATUS: dict[Any, Status] = {
     pt_common.Status.RUNNING: RUNNING,
     pt_common.Status.INVALID: IDLE,
 }
+#: ``STATUS`` by the id of py_trees' status (an enum's own hash is computed in Python).
+STATUS_BY_ID: dict[int, Status] = {id(status): ours for status, ours in STATUS.items()}
 #: The blackboard scope of py_trees' one (global) blackboard.
 SCOPE = ""
 PRUNE = "prune"
@@ -86,7 +88,7 @@ class PyTreesRecorder:
     until ``close``; see the module docstring.
 
     Each change is put in a list by the behaviour itself (``py_trees_hooks``); the list
-    goes to the builder, as one batch, before anything else is recorded (a write, a
+    goes to the builder, as one batch at one time, before anything else is recorded (a write, a
     mutation, a tick's start or end, a question). The live history ``answer`` reads is
     brought up to date only when a question is asked (the builder keeps the events for
     it meanwhile: ``btlog.events.Backlog``), so a run nobody questions costs no more
@@ -137,16 +139,20 @@ class PyTreesRecorder:
         self._tick_ns = 0
         self._ticking = False
         self._next_uid = self.tree.next_uid
-        self._hooked: dict[int, Any] = {}
+        #: the live tree's behaviours, watched (``py_trees_hooks``)
+        self.watch = TreeWatch(self._changes.append)
         self._clients: dict[Any, int | None] = {}
         self._unknown_clients: set[Any] = set()
         self._tap: ActivityTap | None = None
         self._patched: list[str] = []
+        #: status changes found by the sweep (made outside ``stop`` and a tick's yield)
+        self.swept = 0
         self.result: BuildResult | None = None
         self.builder.begin_mid_run(
             {node.uid: STATUS.get(behaviour.status, IDLE) for behaviour, node in pairs}
         )
         self._hook_all(pairs)
+        self.watch.watch_ticks(tree.root)
         if blackboard:
             self._tap = tap_blackboard(self._on_blackboard)
         self._patch_tree()
@@ -161,8 +167,9 @@ class PyTreesRecorder:
     # -- hooks ---------------------------------------------------------------------------
     def _hook_all(self, pairs: list[tuple[Any, Node]]) -> None:
         for behaviour, node in pairs:
-            hook(behaviour, node.uid, packed_rows(node.uid), self._changes.append)
-            self._hooked[node.uid] = behaviour
+            self.watch.watch(behaviour, node.uid, packed_rows(node.uid))
+            if isinstance(behaviour, pt_composites.Composite):
+                self.watch.watch_children(behaviour, self._inserted, self._pruned)
         self._clients.clear()
         self._unknown_clients.clear()
 
@@ -175,7 +182,7 @@ class PyTreesRecorder:
         """Give the builder the changes made since the last time (at ``_at``)."""
         changes = self._changes
         if changes:
-            self.builder.packed(changes, [self._at()] * len(changes))
+            self.builder.packed(changes, self._at())
             changes.clear()
 
     def _on_blackboard(self, item: Any) -> None:
@@ -194,7 +201,7 @@ class PyTreesRecorder:
         uid = self._clients.get(client_id)
         if uid is not None or client_id in self._unknown_clients:
             return uid
-        for known, behaviour in self._hooked.items():
+        for behaviour, known in self.watch.uids.items():
             for client in getattr(behaviour, "blackboards", ()):
                 self._clients[client.unique_identifier] = known
         uid = self._clients.get(client_id)
@@ -203,14 +210,9 @@ class PyTreesRecorder:
         return uid
 
     def _patch_tree(self) -> None:
-        """Route the tree's ``tick`` and subtree changes through the recorder."""
+        """Route the tree's ``tick`` through the recorder."""
         tree = self.py_tree
-        originals = {
-            "tick": tree.tick,
-            "insert_subtree": tree.insert_subtree,
-            "prune_subtree": tree.prune_subtree,
-            "replace_subtree": tree.replace_subtree,
-        }
+        original = tree.tick
 
         def tick(*args: Any, **kwargs: Any) -> None:
             self._hand_on()
@@ -218,59 +220,29 @@ class PyTreesRecorder:
             self.builder.start_tick(self._tick_ns)
             self._ticking = True
             try:
-                originals["tick"](*args, **kwargs)
+                original(*args, **kwargs)
             finally:
+                self.swept += self.watch.sweep()
                 self._hand_on()
                 self._ticking = False
-                root = STATUS.get(tree.root.status, IDLE)
+                root = STATUS_BY_ID.get(id(tree.root.status), IDLE)
                 self.builder.end_tick(self.now_ns(), root)
 
-        def insert_subtree(child: Any, unique_id: Any, index: int) -> bool:
-            self._hand_on()
-            done = bool(originals["insert_subtree"](child, unique_id, index))
-            if done:
-                self._inserted(child)
-            return done
-
-        def prune_subtree(unique_id: Any) -> bool:
-            behaviour = self._find(unique_id)
-            done = bool(originals["prune_subtree"](unique_id))
-            self._hand_on()
-            if done and behaviour is not None:
-                self._pruned(behaviour)
-            return done
-
-        def replace_subtree(unique_id: Any, subtree: Any) -> bool:
-            behaviour = self._find(unique_id)
-            done = bool(originals["replace_subtree"](unique_id, subtree))
-            self._hand_on()
-            if done and behaviour is not None:
-                self._pruned(behaviour)
-                self._inserted(subtree)
-            return done
-
-        for name, patched in (
-            ("tick", tick),
-            ("insert_subtree", insert_subtree),
-            ("prune_subtree", prune_subtree),
-            ("replace_subtree", replace_subtree),
-        ):
-            setattr(tree, name, patched)
-            self._patched.append(name)
-
-    def _find(self, unique_id: Any) -> Any:
-        return next((b for b in self._hooked.values() if b.id == unique_id), None)
+        tick.__doc__ = original.__doc__
+        tree.tick = tick
+        self._patched.append("tick")
 
     # -- mutations -----------------------------------------------------------------------
     def _inserted(self, behaviour: Any) -> None:
         """``behaviour``'s subtree was put in the tree: a mutation, then its statuses."""
-        parent_uid = hooked_uid(behaviour.parent)
+        self._hand_on()
+        parent_uid = self.watch.uid_of(behaviour.parent)
         if parent_uid is None:
             return
         parent = self.tree.node(parent_uid)
         index = behaviour.parent.children.index(behaviour)
         after_behaviour = behaviour.parent.children[index - 1] if index > 0 else None
-        after_uid = None if after_behaviour is None else hooked_uid(after_behaviour)
+        after_uid = None if after_behaviour is None else self.watch.uid_of(after_behaviour)
         after = None if after_uid is None else self.tree.node(after_uid)
         root, pairs = build_subtree(behaviour, self._next_uid)
         self._next_uid += len(pairs)
@@ -285,9 +257,10 @@ class PyTreesRecorder:
 
     def _pruned(self, behaviour: Any) -> None:
         """``behaviour``'s subtree was taken out of the tree: a mutation naming it."""
-        uid = hooked_uid(behaviour)
+        uid = self.watch.uid_of(behaviour)
         if uid is None:
             return
+        self._hand_on()
         node = self.tree.node(uid)
         parent = node.parent
         records = [n.describe() for n in node.walk()]
@@ -296,9 +269,7 @@ class PyTreesRecorder:
         )
         self.tree.remove(node)
         for removed in behaviours(behaviour):
-            removed_uid = hooked_uid(removed)
-            unhook(removed)
-            self._hooked.pop(removed_uid, None)  # type: ignore[arg-type]
+            self.watch.unwatch(removed)
         self._clients.clear()
         self._unknown_clients.clear()
 
@@ -349,6 +320,7 @@ class PyTreesRecorder:
         """Stop recording: the tree and blackboard are as they were, the file finished."""
         if self.result is not None:
             return self.result
+        self.swept += self.watch.sweep()
         self._hand_on()
         for name in self._patched:
             self.py_tree.__dict__.pop(name, None)
@@ -356,9 +328,8 @@ class PyTreesRecorder:
         if self._tap is not None:
             untap_blackboard(self._tap)
             self._tap = None
-        for behaviour in self._hooked.values():
-            unhook(behaviour)
-        self._hooked.clear()
+        for behaviour in list(self.watch.uids):
+            self.watch.unwatch(behaviour)
         self.result = self.builder.close()
         return self.result
 

@@ -1,16 +1,31 @@
 """What a py_trees tree does, seen as it happens: status changes and blackboard activity.
 
-**Status changes.** py_trees sets ``behaviour.status`` in many places — a behaviour's own
-tick, ``stop()``, a composite resetting its children, a Selector invalidating a
-pre-empted lower-priority child it does not visit — so btlog watches the assignment
-itself. ``hook`` gives a behaviour a subclass of its own class (same name, cached per
-class) whose ``status`` is a data descriptor with only ``__set__``: a read of
-``status`` still finds the instance's dict at C speed, an assignment goes through
-``StatusHook.__set__``, which stores the value and, on a change (old is not new), appends
-the change, packed, to the recorder's list: two dict look-ups by the statuses' ids (an
-enum's own hash is computed in Python) and an append, nothing numbered, timed or built
-(the changes of a tick take the tick's time). ``unhook`` gives
-the behaviour its class back.
+**Status changes.** py_trees sets ``behaviour.status`` in two places only: at the end of
+``stop()`` — a behaviour completing (every SUCCESS, FAILURE and INVALID goes through it),
+a composite resetting its children, a Selector invalidating a pre-empted lower-priority
+child it does not visit, ``tree.interrupt()`` — and, for RUNNING, in a behaviour's own
+``tick()`` just before it yields itself. ``StatusWatch`` watches both where they happen:
+
+- each watched behaviour gets a ``stop`` of its own (an instance attribute) that calls the
+  one it had and then, when the status is not the one last seen, appends the change,
+  packed, to the recorder's list. That is a Python-to-Python call, which the interpreter
+  makes without leaving its loop; watching the ``status`` assignment itself (a data
+  descriptor) costs a call from C per assignment, and giving the behaviour another class
+  (needed to put a descriptor on it) makes py_trees' own attribute accesses slower: the
+  instance's inline attribute values become a dict;
+- the root's ``tick`` is wrapped: every behaviour a tick yields reaches the root at once
+  (composites and decorators hand their children's yields up before doing anything
+  else), so the root sees a behaviour that has just set itself RUNNING before anything
+  else happens.
+
+A behaviour's last seen status and its packed changes (the executor's ``CHANGE`` rows:
+``btlog.events.change_rows``) are kept in a ``Cell`` the behaviour's ``stop`` holds: a
+change is one look-up by the new status's id (an enum's own hash is computed in Python, an
+int's is not), two stores and an append, nothing numbered, timed or built (the changes of
+a tick take the tick's time). Together they give every change py_trees makes, in its
+order. A status assigned anywhere else (a user's behaviour writing ``self.status``) is
+found by ``sweep`` at the tick's end, so the recorded state after every tick is the
+tree's whatever the code does; ``unwatch`` gives the behaviour its ``stop`` back.
 
 **Blackboard.** py_trees reports blackboard activity to ``Blackboard.activity_stream``
 when one is enabled. ``ActivityTap`` takes its place while recording: each write, first
@@ -21,18 +36,22 @@ filling it as it was.
 
 from __future__ import annotations
 
-from collections.abc import Callable
+from collections.abc import Callable, Iterator
 from typing import Any
 
 import orjson
 from py_trees import blackboard as pt_blackboard
 from py_trees import common as pt_common
 
-#: Where a hooked behaviour puts a change: the append of the packed changes' list.
+#: Where a watched behaviour puts a change: the append of the packed changes' list.
 Sink = Callable[[bytes], None]
-#: A behaviour's packed changes by the ids of its old and new py_trees status (an enum
-#: member is one object; its own hash is computed in Python, an int's is not).
+#: A behaviour's packed changes by the ids of its old and new py_trees status.
 Rows = dict[int, dict[int, bytes]]
+#: ``[status last seen, its Table]``: a behaviour's state as its watchers share it.
+Cell = list[Any]
+#: The changes out of one status, by the id of the new status: ``(packed change, new
+#: status, the new status's Table)``, what a ``Cell`` becomes.
+Table = dict[int, tuple[bytes, Any, Any]]
 
 #: Activities that change the blackboard.
 WRITES = frozenset({"WRITE", "INITIALISED", "UNSET"})
@@ -41,65 +60,150 @@ MAX_REPR = 1000
 #: The largest JSON value kept as JSON; a larger one is kept as a bounded repr.
 MAX_JSON_BYTES = 64 * 1024
 
-_UID = "_btlog_uid"
-_ROWS = "_btlog_rows"
-_SINK = "_btlog_sink"
-_SUBCLASSES: dict[type, type] = {}
+_INVALID = pt_common.Status.INVALID
+_RUNNING = pt_common.Status.RUNNING
 
 
-class StatusHook:
-    """The ``status`` of a hooked behaviour (see the module docstring)."""
-
-    __slots__ = ()
-
-    def __set__(self, behaviour: Any, status: Any, _id: Callable[[Any], int] = id) -> None:
-        """Store ``status``; when it differs from the last one, put the change in the
-        sink."""
-        slots = behaviour.__dict__
-        old = slots["status"]
-        slots["status"] = status
-        if old is not status:
-            slots[_SINK](slots[_ROWS][_id(old)][_id(status)])
+def tables(rows: Rows) -> dict[int, Table]:
+    """The ``Table`` of each status (by its id) from a behaviour's packed ``rows``."""
+    found: dict[int, Table] = {id(status): {} for status in pt_common.Status}
+    for old in pt_common.Status:
+        for new in pt_common.Status:
+            found[id(old)][id(new)] = (rows[id(old)][id(new)], new, found[id(new)])
+    return found
 
 
-def _subclass(cls: type) -> type:
-    hooked = _SUBCLASSES.get(cls)
-    if hooked is None:
-        namespace = {
-            "status": StatusHook(),
-            "_btlog_original": cls,
-            "__module__": cls.__module__,
-            "__qualname__": cls.__qualname__,
-        }
-        hooked = _SUBCLASSES[cls] = type(cls)(cls.__name__, (cls,), namespace)
-    return hooked
+def _watched_stop(behaviour: Any, cell: Cell, sink: Sink) -> Callable[..., None]:
+    """A ``stop`` for ``behaviour`` that calls the one it has and puts the change it made
+    in ``sink``."""
+    bound = behaviour.stop
+    if getattr(bound, "__func__", None) is getattr(type(behaviour), "stop", None):
+        own = bound.__func__  # called unbound: a bound method's call costs more
+
+        def stop(new_status: Any = _INVALID) -> None:
+            own(behaviour, new_status)
+            status = behaviour.status
+            if status is not cell[0]:
+                packed, cell[0], cell[1] = cell[1][id(status)]
+                sink(packed)
+
+    else:  # a stop of its own (another recorder's, the program's)
+
+        def stop(new_status: Any = _INVALID) -> None:
+            bound(new_status)
+            status = behaviour.status
+            if status is not cell[0]:
+                packed, cell[0], cell[1] = cell[1][id(status)]
+                sink(packed)
+
+    return stop
 
 
-def hook(behaviour: Any, uid: int, rows: Rows, sink: Sink) -> None:
-    """Put every later status change of ``behaviour``, node ``uid``, in ``sink``, packed
-    as ``rows`` says."""
-    cls = type(behaviour)
-    if "_btlog_original" not in cls.__dict__:
-        behaviour.__class__ = _subclass(cls)
-    slots = behaviour.__dict__
-    slots.setdefault("status", pt_common.Status.INVALID)
-    slots[_UID] = uid
-    slots[_ROWS] = rows
-    slots[_SINK] = sink
+class TreeWatch:
+    """Watches the behaviours given to ``watch``: each status change is put, packed, in
+    ``sink``, and a composite's children put in or taken out go to the callbacks (see
+    the module docstring)."""
+
+    def __init__(self, sink: Sink) -> None:
+        self.sink = sink
+        #: each watched behaviour's cell (its ``stop`` holds the same)
+        self.cells: dict[Any, Cell] = {}
+        #: each watched behaviour's node uid
+        self.uids: dict[Any, int] = {}
+        #: what each watched behaviour was given, by attribute name
+        self._given: dict[Any, dict[str, Callable[..., Any]]] = {}
+
+    def _give(self, behaviour: Any, name: str, method: Callable[..., Any]) -> None:
+        method.__doc__ = getattr(behaviour, name).__doc__
+        setattr(behaviour, name, method)
+        self._given.setdefault(behaviour, {})[name] = method
+
+    def watch(self, behaviour: Any, uid: int, rows: Rows) -> None:
+        """Put every later status change of ``behaviour``, node ``uid``, in the sink,
+        packed as ``rows`` says (the status it has now is the last seen)."""
+        status = getattr(behaviour, "status", _INVALID)
+        table = tables(rows)
+        cell = [status, table[id(status)]]
+        self.cells[behaviour] = cell
+        self.uids[behaviour] = uid
+        self._give(behaviour, "stop", _watched_stop(behaviour, cell, self.sink))
+
+    def watch_children(
+        self, composite: Any, inserted: Callable[[Any], None], removed: Callable[[Any], None]
+    ) -> None:
+        """Hand each child later put in ``composite`` (``add_child``, ``insert_child``,
+        ``prepend_child``, and so ``add_children``, ``replace_child`` and the tree's
+        ``insert_subtree``...) to ``inserted`` once it is in, and each taken out
+        (``remove_child``, ``remove_all_children``, ...) to ``removed`` once it is out."""
+        for name in ADDERS:
+            self._give(composite, name, _after(getattr(composite, name), inserted))
+        self._give(composite, "remove_child", _after(composite.remove_child, removed))
+        remove_all = composite.remove_all_children
+
+        def remove_all_children() -> None:
+            children = list(composite.children)
+            remove_all()
+            for child in children:
+                removed(child)
+
+        self._give(composite, "remove_all_children", remove_all_children)
+
+    def unwatch(self, behaviour: Any) -> None:
+        """Give ``behaviour`` its own methods back; it reports nothing more."""
+        for name, method in self._given.pop(behaviour, {}).items():
+            if getattr(behaviour, name, None) is method:
+                delattr(behaviour, name)
+        self.cells.pop(behaviour, None)
+        self.uids.pop(behaviour, None)
+
+    def uid_of(self, behaviour: Any) -> int | None:
+        """The uid ``behaviour`` is recorded as, if it is watched."""
+        return self.uids.get(behaviour)
+
+    def watch_ticks(self, root: Any) -> None:
+        """Wrap ``root``'s ``tick``: a watched behaviour it yields that is RUNNING, and
+        was not, puts the change in the sink."""
+        ticks = root.tick
+        cells, sink, running = self.cells, self.sink, id(_RUNNING)
+
+        def tick() -> Iterator[Any]:
+            for behaviour in ticks():
+                if behaviour.status is _RUNNING:
+                    cell = cells.get(behaviour)
+                    if cell is not None and cell[0] is not _RUNNING:
+                        packed, cell[0], cell[1] = cell[1][running]
+                        sink(packed)
+                yield behaviour
+
+        self._give(root, "tick", tick)
+
+    def sweep(self) -> int:
+        """Put in the sink the change of each watched behaviour whose status is not the
+        one last seen (set outside ``stop`` and a tick's yield); how many there were."""
+        found = 0
+        sink = self.sink
+        for behaviour, cell in self.cells.items():
+            status = behaviour.status
+            if status is not cell[0]:
+                packed, cell[0], cell[1] = cell[1][id(status)]
+                sink(packed)
+                found += 1
+        return found
 
 
-def unhook(behaviour: Any) -> None:
-    """Give ``behaviour`` its own class back; it reports nothing more."""
-    original = type(behaviour).__dict__.get("_btlog_original")
-    if original is not None:
-        behaviour.__class__ = original
-    for key in (_UID, _ROWS, _SINK):
-        behaviour.__dict__.pop(key, None)
+#: A composite's methods that put a child in (the child is their first argument).
+ADDERS = ("add_child", "insert_child", "prepend_child")
 
 
-def hooked_uid(behaviour: Any) -> int | None:
-    """The uid ``behaviour`` reports as, if it is hooked."""
-    return behaviour.__dict__.get(_UID)
+def _after(method: Callable[..., Any], then: Callable[[Any], None]) -> Callable[..., Any]:
+    """``method``, then ``then`` of its first argument."""
+
+    def called(child: Any, *args: Any) -> Any:
+        result = method(child, *args)
+        then(child)
+        return result
+
+    return called
 
 
 def recorded_value(value: Any) -> Any:

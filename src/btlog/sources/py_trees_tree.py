@@ -89,11 +89,6 @@ SEMANTICS: dict[str, Callable[[Any], tuple[str, dict[str, str]]]] = {
 KEPT = ("memory", "policy", "num_failures", "num_success", "duration")
 
 
-def class_of(behaviour: Any) -> type:
-    """The behaviour's own py_trees (or user) class, past btlog's recording subclass."""
-    return getattr(type(behaviour), "_btlog_original", type(behaviour))
-
-
 def _kind(behaviour: Any, is_leaf: bool, class_name: str) -> str:
     if not is_leaf:
         return DECORATOR if hasattr(behaviour, "decorated") else CONTROL
@@ -105,7 +100,7 @@ def _kind(behaviour: Any, is_leaf: bool, class_name: str) -> str:
 
 def node_of(behaviour: Any, uid: int) -> Node:
     """The parentless, childless node of one behaviour."""
-    class_name = class_of(behaviour).__name__
+    class_name = type(behaviour).__name__
     is_composite = bool(behaviour.children) or _is_composite(behaviour)
     kind = _kind(behaviour, not is_composite, class_name)
     semantics = SEMANTICS.get(class_name) if kind in (CONTROL, DECORATOR) else None
