@@ -76,7 +76,15 @@ def main() -> None:
     args = parser.parse_args()
     if args.smoke:
         args.runs, args.repeat, args.reference = 40, 1, 10
-    work = Path(args.keep or tempfile.mkdtemp(prefix="btlog-fleet-"))
+    if args.keep:
+        measure(args, Path(args.keep))
+    else:  # removed afterwards
+        with tempfile.TemporaryDirectory(prefix="btlog-fleet-") as work:
+            measure(args, Path(work))
+
+
+def measure(args: argparse.Namespace, work: Path) -> None:
+    """Make the runs and the lake in ``work`` and print the figures."""
     os.environ.setdefault("BTLOG_CACHE_DIR", str(work / "cache"))
     folder, lake = Path(args.recordings) if args.recordings else work / "runs", work / "lake"
     folder.mkdir(parents=True, exist_ok=True)

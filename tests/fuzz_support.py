@@ -25,12 +25,16 @@ still works). Use it under ``@given``::
 
 from __future__ import annotations
 
+import atexit
 import contextlib
 import functools
 import io
+import shutil
+import tempfile
 import time
 from collections.abc import Callable, Sequence
 from dataclasses import dataclass
+from pathlib import Path
 from typing import Any
 
 from hypothesis import HealthCheck, Phase, settings
@@ -195,3 +199,11 @@ def fuzz(examples: int = 50, seconds: float = 10.0) -> Callable[[Callable], Call
         )(run)
 
     return bounded
+
+
+def scratch_folder(prefix: str) -> Path:
+    """A new temporary folder for a fuzz module's inputs and outputs, removed when the
+    process ends (a module's inputs are made at import, before any fixture exists)."""
+    folder = Path(tempfile.mkdtemp(prefix=prefix))
+    atexit.register(shutil.rmtree, folder, ignore_errors=True)
+    return folder

@@ -85,14 +85,15 @@ def _crafted(parts: list[bytes], good_header: bool):
 )
 @fuzz(examples=10, seconds=15)
 def test_attach_fed_odd_replies_loses_nothing_without_a_gap(replies) -> None:
-    out = Path(tempfile.mkdtemp(prefix="btlog-fuzz-groot2-")) / "odd.mcap"
-    with FakePublisher(XML) as publisher, attached(publisher, out) as attaching:
-        robot = Robot(publisher)
-        wait_polls(publisher, polls=3)
-        publisher.craft("t", *(_crafted(parts, good) for parts, good in replies))
-        wait_polls(publisher, polls=len(replies) + 3)
-        robot.stop()
-        time.sleep(0.05)
-        result = attaching.finish()
-    assert not result.gone, result.build.warnings
-    assert_lost_only_in_gaps(publisher, out)
+    with tempfile.TemporaryDirectory(prefix="btlog-fuzz-groot2-") as folder:
+        out = Path(folder) / "odd.mcap"
+        with FakePublisher(XML) as publisher, attached(publisher, out) as attaching:
+            robot = Robot(publisher)
+            wait_polls(publisher, polls=3)
+            publisher.craft("t", *(_crafted(parts, good) for parts, good in replies))
+            wait_polls(publisher, polls=len(replies) + 3)
+            robot.stop()
+            time.sleep(0.05)
+            result = attaching.finish()
+        assert not result.gone, result.build.warnings
+        assert_lost_only_in_gaps(publisher, out)

@@ -17,11 +17,19 @@ from btlog.sinks.btcpp_filelog import export_filelog
 from btlog.sources.btcpp_filelog import read_filelog
 from btlog.sources.btcpp_records import RECORD_SIZE
 from tests.cli_support import ROOT
-from tests.fuzz_support import Damage, assert_contract, assert_prefix_kept, damaged, fuzz, run_cli
+from tests.fuzz_support import (
+    Damage,
+    assert_contract,
+    assert_prefix_kept,
+    damaged,
+    fuzz,
+    run_cli,
+    scratch_folder,
+)
 from tests.test_import_faults import sqlite_log
 
 KITTING_RUN = ROOT / "recordings" / "kitting-look-at-chuck-fails.mcap"
-_FOLDER = Path(tempfile.mkdtemp(prefix="btlog-fuzz-imports-"))
+_FOLDER = scratch_folder("btlog-fuzz-imports-")
 BTLOG_FILE = _FOLDER / "kitting.btlog"
 export_filelog(open_recording(KITTING_RUN), BTLOG_FILE)
 BTLOG = BTLOG_FILE.read_bytes()

@@ -24,12 +24,20 @@ from btlog.record.walk import HEAD, MAGIC, Walk, chunk_records, inner_records, t
 from btlog.runner import RunConfig, execute
 from btlog.sinks.nav2_rosbag import LOG_MSGDEF
 from tests.fbl_support import write_fbl
-from tests.fuzz_support import Damage, assert_contract, assert_prefix_kept, damaged, fuzz, run_cli
+from tests.fuzz_support import (
+    Damage,
+    assert_contract,
+    assert_prefix_kept,
+    damaged,
+    fuzz,
+    run_cli,
+    scratch_folder,
+)
 from tests.rosbag2_support import HUMBLE, NAV2_LOG, write_sqlite_bag
 from tests.test_import_fbl import STAND_IN, UID_BASE, header_of
 from tests.test_nav2_rosbag import nav2_messages, write_nav2_bag
 
-_FOLDER = Path(tempfile.mkdtemp(prefix="btlog-fuzz-logs-"))
+_FOLDER = scratch_folder("btlog-fuzz-logs-")
 _OUTCOMES = {
     "default": {"status": "SUCCESS", "duration": 0.3},
     "nodes": {"FollowPath": [{"status": "FAILURE", "duration": 1.0}, "SUCCESS"]},

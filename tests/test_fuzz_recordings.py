@@ -18,10 +18,10 @@ from mcap.opcode import Opcode
 from btlog.record import RecordingError, open_recording
 from btlog.record import format as fmt
 from btlog.record.walk import HEAD, MESSAGE_HEAD, chunk_records, inner_records
-from tests.fuzz_support import Damage, assert_contract, damaged, fuzz, run_cli
+from tests.fuzz_support import Damage, assert_contract, damaged, fuzz, run_cli, scratch_folder
 from tests.test_damage import chunks, record
 
-_FOLDER = Path(tempfile.mkdtemp(prefix="btlog-fuzz-recordings-"))
+_FOLDER = scratch_folder("btlog-fuzz-recordings-")
 _SOURCE = _FOLDER / "run.mcap"
 record(_SOURCE, ticks=120)
 ORIGINAL = _SOURCE.read_bytes()
