@@ -776,3 +776,21 @@ def test_a_version_2_recording_reads_as_its_version_3_original(kitting, tmp_path
         assert_replay_equals_live(older.run(), live)
         for table in ("transitions", "blackboard", "ticks"):
             assert older.sql(query.format(table)) == new.sql(query.format(table))
+
+
+def test_a_timeline_read_in_windows_is_the_whole_timeline(kitting, tmp_path, monkeypatch):
+    """``iter_timeline`` reads a few seqs a query (bounded memory on a day-long run): the
+    windows joined are the timeline, filters and bounds included."""
+    path, live = kitting
+    with open_runs(path, cache_dir=tmp_path) as database:
+        run = database.run()
+        whole = run.timeline()
+        failures = run.timeline(status="failure")
+        window = run.timeline(start="tick:3", end="tick:9")
+        monkeypatch.setattr("btlog.replay.run.TIMELINE_WINDOW", 7)
+        assert list(run.iter_timeline()) == whole
+        assert [e.seq for e in whole] == [e.seq for e in live.log.events]
+        assert run.timeline(status="failure") == failures and failures
+        assert run.timeline(start="tick:3", end="tick:9") == window and window
+        with pytest.raises(ReplayError, match="no node"):
+            run.iter_timeline(node="no such node")

@@ -316,7 +316,8 @@ def _no_blackboard(path: str) -> str:
 
 
 def timeline(args: Namespace) -> int:
-    """``btlog timeline``: the events, filtered by node, status and time."""
+    """``btlog timeline``: the events, filtered by node, status and time, printed as they
+    are read (a run's whole timeline in bounded memory)."""
     database, run = _open_run(args.run)
     try:
         status = None
@@ -325,21 +326,23 @@ def timeline(args: Namespace) -> int:
                 status = Status[args.status.upper()]
             except KeyError:
                 raise ValueError(f"unknown status {args.status!r}") from None
-        entries = run.timeline(node=args.node, status=status, start=args.start, end=args.end)
+        entries = run.iter_timeline(node=args.node, status=status, start=args.start, end=args.end)
+        rows = (e._asdict() for e in entries if args.writes or e.kind != "write")
+        if args.json:
+            for row in rows:
+                print(json.dumps(row, default=repr))
+            return 0
+        from btlog.render.terminal import make_console
+
+        console = make_console(args.plain)
+        printed = False
+        for row in rows:
+            console.print(timeline_line(row), highlight=False)
+            printed = True
+        if not printed:
+            console.print("(no events match)")
     finally:
         database.close()
-    rows = [e._asdict() for e in entries if args.writes or e.kind != "write"]
-    if args.json:
-        for row in rows:
-            print(json.dumps(row, default=repr))
-        return 0
-    from btlog.render.terminal import make_console
-
-    console = make_console(args.plain)
-    for row in rows:
-        console.print(timeline_line(row), highlight=False)
-    if not rows:
-        console.print("(no events match)")
     return 0
 
 

@@ -23,6 +23,7 @@ from __future__ import annotations
 
 from bisect import bisect_right
 from collections import OrderedDict
+from collections.abc import Iterator
 from dataclasses import dataclass
 from datetime import datetime
 from typing import Any, NamedTuple, Protocol
@@ -54,6 +55,8 @@ from btlog.tree.model import Tree
 
 #: A key past every time and tick (the first key of an empty block).
 _PAST = 2**63 - 1
+#: The seqs a timeline query reads at a time (``Run.iter_timeline``).
+TIMELINE_WINDOW = 200_000
 
 
 class ReplayError(ValueError):
@@ -339,33 +342,49 @@ class Run:
 
         ``node`` (a uid, or a name, type or path as in outcomes files) keeps that node's
         status changes, its writes and the mutations inserting it; ``status`` keeps the
-        status changes to that status.
+        status changes to that status. A list (``iter_timeline`` streams them).
         """
+        return list(self.iter_timeline(node, status, start, end))
+
+    def iter_timeline(
+        self,
+        node: int | str | None = None,
+        status: str | Status | None = None,
+        start: str | Moment | None = None,
+        end: str | Moment | None = None,
+    ) -> Iterator[TimelineEntry]:
+        """``timeline``'s events one at a time, read ``TIMELINE_WINDOW`` seqs a query, so a
+        run's whole timeline is printed in bounded memory (the filters are checked before
+        the first one comes)."""
         lo = 0 if start is None else self._first_at(parse_moment(start))
         hi = self.extent.events if end is None else self.resolve(end).count
         uids = None if node is None else self._node_uids(node)
         wanted = None if status is None else _status_name(status)
-        rows = self.con.execute(
-            self._timeline_query(uids is not None, wanted is not None),
-            self._timeline_params(lo, hi, uids, wanted),
-        ).fetchall()
+        return self._timeline_windows(lo, hi, uids, wanted)
+
+    def _timeline_windows(
+        self, lo: int, hi: int, uids: list[int] | None, wanted: str | None
+    ) -> Iterator[TimelineEntry]:
+        query = self._timeline_query(uids is not None, wanted is not None)
         names = {n.uid: n.description for n in self.final_tree()}
-        return [
-            TimelineEntry(
-                seq,
-                t,
-                tick,
-                kind,
-                uid,
-                names.get(uid),
-                prev,
-                new,
-                scope,
-                key,
-                None if value is None else orjson.loads(value),
-            )
-            for seq, t, tick, kind, uid, prev, new, scope, key, value in rows
-        ]
+        for low in range(lo, hi, TIMELINE_WINDOW):
+            params = self._timeline_params(low, min(hi, low + TIMELINE_WINDOW), uids, wanted)
+            for seq, t, tick, kind, uid, prev, new, scope, key, value in self.con.execute(
+                query, params
+            ).fetchall():
+                yield TimelineEntry(
+                    seq,
+                    t,
+                    tick,
+                    kind,
+                    uid,
+                    names.get(uid),
+                    prev,
+                    new,
+                    scope,
+                    key,
+                    None if value is None else orjson.loads(value),
+                )
 
     def _first_at(self, moment: Moment) -> int:
         """The first event at or after a start moment."""
