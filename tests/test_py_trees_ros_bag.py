@@ -13,6 +13,7 @@ import py_trees
 import pytest
 from py_trees.common import Status as PtStatus
 
+from btlog.events import TreeMutation
 from btlog.record.reader import open_recording
 from btlog.replay.database import open_runs
 from btlog.sources.py_trees import STATUS
@@ -187,6 +188,54 @@ def test_skipped_ticks_are_told(tmp_path: Path) -> None:
     result = btlog("import", tmp_path / "bag", "-o", tmp_path / "run.mcap")
     assert result.returncode == 0, result.stderr
     assert "2 ticks have no snapshot" in result.stderr
+
+
+def test_tree_changes_between_snapshots_are_mutations(tmp_path: Path) -> None:
+    """A subtree inserted into the running tree and a behaviour pruned from it show in
+    the snapshots after; the import makes them insert and prune mutations, and the state
+    at every tick is the live tree's, behaviour for behaviour."""
+    py_trees.blackboard.Blackboard.clear()
+    tree = py_trees.trees.BehaviourTree(make_tree())
+    work = next(b for b in tree.root.iterate() if b.name == "Work")
+    extra = py_trees.composites.Sequence(
+        "Extra",
+        memory=False,
+        children=[py_trees.behaviours.Success("Check"), py_trees.behaviours.Running("Go")],
+    )
+    messages: list[Message] = []
+    seen: list[dict[str, Any]] = []
+    for tick in range(1, TICKS + 1):
+        if tick == 2:
+            tree.insert_subtree(extra, work.id, 1)
+        if tick == 4:
+            tree.prune_subtree(extra.children[0].id)
+        tree.tick()
+        t = START_NS + tick * 100_000_000
+        messages.append((TOPIC, SNAPSHOT_TYPE, t, snapshot(tree.root, tick, [])))
+        seen.append({b.name: STATUS[b.status] for b in tree.root.iterate()})
+    write_mcap_bag(tmp_path / "bag", messages, {SNAPSHOT_TYPE: DEFINITION})
+    out = tmp_path / "run.mcap"
+    result = btlog("import", tmp_path / "bag", "-o", out)
+    assert result.returncode == 0, result.stderr
+    recording = open_recording(out)
+    mutations = [e for e in recording.events if isinstance(e, TreeMutation)]
+    assert [(m.op, m.tick, [n["name"] for n in m.nodes]) for m in mutations] == [
+        ("insert", 2, ["Extra", "Check", "Go"]),
+        ("prune", 4, ["Check"]),
+    ]
+    database = open_runs(out, cache=False)
+    try:
+        run = database.run(str(out))
+        for tick, statuses in enumerate(seen, start=1):
+            tree_then, state = run.state_at(f"tick:{tick}")
+            replayed = {node.name: state.status_of(node.uid) for node in tree_then}
+            assert replayed == statuses, tick
+    finally:
+        database.close()
+    inserted = {n["name"]: n for n in mutations[0].nodes}
+    previous = {node.uid: node.name for node in recording.tree}
+    assert previous[mutations[0].after_uid] == "Note"  # at index 1, after Work's first
+    assert min(n["uid"] for n in inserted.values()) > max(previous)
 
 
 @pytest.mark.parametrize("damage", ["orphan child", "two roots"])

@@ -14,7 +14,12 @@ tick: each behaviour whose status differs from the last snapshot's changes (INVA
 IDLE), in a depth-first walk, a behaviour that starts RUNNING before its children's
 changes, any other change after them (children complete before their parent, as
 py_trees and BT.CPP order them). WRITE and INITIALISED blackboard activity items are
-writes (key, the value's text, the behaviour named as the client when one is).
+writes (key, the value's text, the behaviour named as the client when one is). A
+snapshot whose behaviours differ from the tree's changes the tree first, at its tick:
+a behaviour gone is a ``prune`` mutation of its subtree, a new one under a known parent
+an ``insert`` (after its nearest earlier sibling, fresh uids after the largest ever
+used), as the live py_trees recorder records ``prune_subtree`` and ``insert_subtree``;
+a behaviour that moved to another parent is not followed.
 
 A snapshot tells each status at its tick only; what happened between two snapshots (a
 behaviour that ran and was reset, ticks whose snapshots were not published) is not in
@@ -23,8 +28,10 @@ the bag, and the import's warnings say so.
 
 from __future__ import annotations
 
+import itertools
 import os
 import re
+from collections.abc import Iterator
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
@@ -49,6 +56,8 @@ BETWEEN = (
     "before its children change, completes after them)"
 )
 _ZERO = bytes(16)
+INSERT = "insert"
+PRUNE = "prune"
 
 
 @dataclass
@@ -132,35 +141,119 @@ def build_tree(first: Any, where: str) -> tuple[Tree, dict[bytes, int], list[str
         raise SourceError(f"{where}: the first snapshot has {len(roots)} root behaviours")
     uids: dict[bytes, int] = {}
     lacking: list[str] = []
-
-    def build(message: Any, parent: Node | None) -> Node:
-        own = _uuid(message.own_id)
-        if own in uids:
-            raise SourceError(f"{where}: behaviour {str(message.name)!r} appears twice")
-        uid = uids[own] = len(uids) + 1
-        shim = _Behaviour(message)
-        shim.children = list(message.child_ids)  # node_of asks only whether it has some
-        bases = (_Behaviour, _Composite) if shim.composite else (_Behaviour,)
-        shim.__class__ = type(shim.class_name, bases, {})
-        try:
-            node = node_of(shim, uid)
-        except (AttributeError, TypeError, ValueError):  # Retry's attempts, Timeout's...
-            lacking.append(shim.name)
-            shim.__class__ = type(f"{shim.class_name}_", (_Behaviour,), {})
-            node = node_of(shim, uid)
-            node.type = node.attributes["py_trees"] = shim.class_name
-            if node.name == shim.class_name:  # py_trees' default name: nameless
-                node.name, node.path = "", f"::{uid}"
-        node.parent = parent
-        for child_id in message.child_ids:
-            child = by_id.get(_uuid(child_id))
-            if child is None:
-                raise SourceError(f"{where}: {str(message.name)!r} has a child not in it")
-            node.children.append(build(child, node))
-        return node
-
-    root = build(roots[0], None)
+    root = build_subtree(roots[0], by_id, uids, itertools.count(1), lacking, where)
     return Tree(root=root, name=str(roots[0].name)), uids, lacking
+
+
+def build_subtree(
+    message: Any,
+    by_id: dict[bytes, Any],
+    uids: dict[bytes, int],
+    numbers: Iterator[int],
+    lacking: list[str],
+    where: str,
+) -> Node:
+    """The parentless nodes of the behaviour ``message`` and its descendants (looked up
+    in ``by_id``), uids taken from ``numbers`` in pre-order and noted in ``uids``; the
+    behaviours whose parameters the snapshot lacks are added to ``lacking``."""
+    own = _uuid(message.own_id)
+    if own in uids:
+        raise SourceError(f"{where}: behaviour {str(message.name)!r} appears twice")
+    uid = uids[own] = next(numbers)
+    shim = _Behaviour(message)
+    shim.children = list(message.child_ids)  # node_of asks only whether it has some
+    bases = (_Behaviour, _Composite) if shim.composite else (_Behaviour,)
+    shim.__class__ = type(shim.class_name, bases, {})
+    try:
+        node = node_of(shim, uid)
+    except (AttributeError, TypeError, ValueError):  # Retry's attempts, Timeout's...
+        lacking.append(shim.name)
+        shim.__class__ = type(f"{shim.class_name}_", (_Behaviour,), {})
+        node = node_of(shim, uid)
+        node.type = node.attributes["py_trees"] = shim.class_name
+        if node.name == shim.class_name:  # py_trees' default name: nameless
+            node.name, node.path = "", f"::{uid}"
+    for child_id in message.child_ids:
+        child = by_id.get(_uuid(child_id))
+        if child is None:
+            raise SourceError(f"{where}: {str(message.name)!r} has a child not in it")
+        built = build_subtree(child, by_id, uids, numbers, lacking, where)
+        built.parent = node
+        node.children.append(built)
+    return node
+
+
+class _Shape:
+    """Follows the tree's shape from snapshot to snapshot: a behaviour gone is a prune,
+    a new one under a known parent an insert (uids after the largest ever used)."""
+
+    def __init__(self, tree: Tree, uids: dict[bytes, int], builder: RecordingBuilder) -> None:
+        self.tree, self.uids, self.builder = tree, uids, builder
+        self.numbers = itertools.count(tree.next_uid)
+        self.lacking: list[str] = []
+        #: behaviours a snapshot could not place (a new root, a parent never seen)
+        self.unplaced = 0
+
+    def follow(self, t: int, message: Any, state: dict[int, Status], where: str) -> bool:
+        """Make the tree the snapshot's (mutations at ``t``; ``state`` follows it);
+        whether it changed."""
+        by_id = {_uuid(b.own_id): b for b in message.behaviours}
+        if by_id.keys() == self.uids.keys():
+            return False
+        own_of = {uid: own for own, uid in self.uids.items()}
+        for node in list(self.tree):  # pre-order: the top of a gone subtree first
+            if node.uid in self.tree.nodes and node.parent and own_of[node.uid] not in by_id:
+                self._prune(t, node, state)
+        new = [own for own in by_id if own not in self.uids]
+        for own in new:
+            parent_own = _uuid(by_id[own].parent_id)
+            if parent_own in new:
+                continue  # built with its new parent
+            parent = self.uids.get(parent_own)
+            if parent is None:
+                self.unplaced += 1
+                continue
+            self._insert(t, by_id[own], self.tree.node(parent), by_id, state, where)
+        return True
+
+    def _prune(self, t: int, node: Node, state: dict[int, Status]) -> None:
+        records = [n.describe() for n in node.walk()]
+        self.builder.mutate(t, PRUNE, node.parent.uid, None, records)  # type: ignore[union-attr]
+        gone = {n.uid for n in node.walk()}
+        self.tree.remove(node)
+        for own in [own for own, uid in self.uids.items() if uid in gone]:
+            del self.uids[own]
+        for uid in gone:
+            state.pop(uid, None)
+
+    def _insert(
+        self,
+        t: int,
+        behaviour: Any,
+        parent: Node,
+        by_id: dict[bytes, Any],
+        state: dict[int, Status],
+        where: str,
+    ) -> None:
+        siblings = by_id[_uuid(behaviour.parent_id)].child_ids
+        ids = [_uuid(child) for child in siblings]
+        before = [self.uids.get(own) for own in ids[: ids.index(_uuid(behaviour.own_id))]]
+        known = [uid for uid in before if uid is not None and uid in self.tree.nodes]
+        after = self.tree.node(known[-1]) if known else None
+        root = build_subtree(behaviour, by_id, self.uids, self.numbers, self.lacking, where)
+        self.tree.insert_after(parent, after, root, self.builder.seq)
+        records = [node.describe() for node in root.walk()]
+        self.builder.mutate(t, INSERT, parent.uid, None if after is None else after.uid, records)
+        for node in root.walk():
+            state[node.uid] = IDLE
+
+
+def _names(tree: Tree) -> dict[str, list[int]]:
+    """The uids of the tree's nodes by py_trees name (a blackboard client's name)."""
+    names: dict[str, list[int]] = {}
+    for node in tree:
+        names.setdefault(str(node.attributes.get("py_trees_name", node.name)), []).append(node.uid)
+    return names
 
 
 def _ordered_changes(tree: Tree, was: dict[int, Status], now: dict[int, Status]) -> list[int]:
@@ -186,9 +279,7 @@ def import_snapshots(path: str | os.PathLike, output: str | os.PathLike) -> Buil
     bag = read_snapshots(path)
     first_t, first = next((t, m) for t, m in bag.messages if m.behaviours)
     tree, uids, lacking = build_tree(first, f"{bag.file}: {bag.topic}")
-    names: dict[str, list[int]] = {}
-    for node in tree:
-        names.setdefault(str(node.attributes.get("py_trees_name", node.name)), []).append(node.uid)
+    names = _names(tree)
     source = Source.of_file(
         FORMAT,
         bag.file,
@@ -210,6 +301,8 @@ def import_snapshots(path: str | os.PathLike, output: str | os.PathLike) -> Buil
     )
     builder.warnings.extend(notes)
     state = {uid: IDLE for uid in uids.values()}
+    shape = _Shape(tree, uids, builder)
+    where = f"{bag.file}: {bag.topic}"
     unknown = skipped = 0
     last_count: int | None = None
     try:
@@ -219,6 +312,9 @@ def import_snapshots(path: str | os.PathLike, output: str | os.PathLike) -> Buil
             if last_count is not None and count > last_count + 1:
                 skipped += count - last_count - 1
             last_count = count if count else last_count
+            builder.start_tick(t)
+            if shape.follow(t, message, state, where):
+                names = _names(tree)
             now = dict(state)
             for behaviour in message.behaviours:
                 uid = uids.get(_uuid(behaviour.own_id))
@@ -227,7 +323,6 @@ def import_snapshots(path: str | os.PathLike, output: str | os.PathLike) -> Buil
                     unknown += 1
                     continue
                 now[uid] = status
-            builder.start_tick(t)
             for uid in _ordered_changes(tree, state, now):
                 builder.transition(t, uid, now[uid], state[uid])
             for item in message.blackboard_activity:
@@ -259,6 +354,12 @@ def import_snapshots(path: str | os.PathLike, output: str | os.PathLike) -> Buil
             f"{bag.file}: {unknown} behaviour entries name a behaviour not in the first "
             "snapshot's tree, or an unknown status; they were left out"
         )
+    if shape.unplaced:
+        builder.warnings.append(
+            f"{bag.file}: {shape.unplaced} behaviours appeared under a parent never seen "
+            "(or as a new root); they were left out"
+        )
+    lacking += [name for name in shape.lacking if name not in lacking]
     if lacking:
         builder.warnings.append(
             f"{bag.file}: the snapshots do not carry the parameters of "
