@@ -114,3 +114,47 @@ def test_a_header_only_file_has_nothing_to_recover(recording, tmp_path):
     assert done.stderr.count("\n") == 1
     assert str(header_only) in done.stderr and "nothing to recover" in done.stderr
     assert not (tmp_path / "out.mcap").exists()
+
+
+def _by_topic(path: Path) -> dict[str, list[bytes]]:
+    found: dict[str, list[bytes]] = {}
+    for topic, _time, payload in iter_messages(path):
+        found.setdefault(topic, []).append(payload)
+    return found
+
+
+def test_a_cut_file_in_order_is_copied_as_it_comes_and_a_shuffled_one_saves_the_same(
+    recording, tmp_path
+):
+    """The normal cut file is copied in file order (one chunk at a time); its chunks
+    shuffled, the same messages are saved, topic by topic in the same order, and the
+    report counts the same."""
+    path, log = recording
+    count = len(chunks(path.read_bytes()))
+    cut = reordered(path, tmp_path / "cut.mcap", list(range(count)), keep_summary=False)
+    moved = reordered(path, tmp_path / "moved.mcap", shuffled_order(count, 3), keep_summary=False)
+    fixed, said = recovered(cut, tmp_path)
+    in_order = _by_topic(fixed)
+    topics = [topic for topic, _time, _payload in iter_messages(fixed)]
+    assert topics.index(fmt.TICKS_TOPIC) < len(topics) - topics[::-1].index(fmt.EVENTS_TOPIC) - 1
+    (tmp_path / "again").mkdir()
+    fixed_moved, said_moved = recovered(moved, tmp_path / "again")
+    assert _by_topic(fixed_moved) == in_order and len(in_order[fmt.EVENTS_TOPIC]) > 5
+    assert (
+        said_moved.replace(str(moved), "X").split("->")[1].split(":", 1)[1]
+        == (said.split("->")[1].split(":", 1)[1])
+    )
+    assert open_recording(fixed_moved).events == log.events
+
+
+def test_a_chunk_repeated_far_from_its_place_is_dropped_and_counted(recording, tmp_path):
+    path, log = recording
+    data = path.read_bytes()
+    found = chunks(data)
+    offset, length = found[2]
+    end = found[-1][0] + found[-1][1]
+    broken = tmp_path / "again.mcap"
+    broken.write_bytes(data[:end] + data[offset : offset + length])  # cut, chunk 2 again
+    fixed, said = recovered(broken, tmp_path)
+    assert "duplicated messages dropped" in said
+    assert open_recording(fixed).events == log.events

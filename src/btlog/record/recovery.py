@@ -13,19 +13,21 @@ metadata, no tree and no tree file attached) is refused in one line. A damaged c
 (bad CRC, bad framing) is dropped and every intact chunk after it kept
 (``btlog.record.walk``); the report says which bytes were dropped and which seqs are
 missing from what was saved. The new file is written beside the target and moved into
-place at the end, so the target may be the broken file itself. The messages are held in
-memory while they are put in order.
+place at the end, so the target may be the broken file itself. Memory stays bounded
+whatever the run's length: the messages are copied a chunk at a time, in file order
+when the file has them in seq order, else merged chunk by chunk (``btlog.record.salvage``).
 """
 
 from __future__ import annotations
 
 import os
 import tempfile
+from collections.abc import Callable, Iterator
 from dataclasses import dataclass, field
-from itertools import pairwise
 from pathlib import Path
 
 import orjson
+from mcap.opcode import Opcode
 from mcap.records import Attachment, Channel, Header, Message, Metadata, Schema
 from mcap.well_known import SchemaEncoding
 from mcap.writer import Writer
@@ -33,9 +35,24 @@ from mcap.writer import Writer
 from btlog.errors import one_line
 from btlog.record import format as fmt
 from btlog.record.background import name_file
-from btlog.record.reader import RecordingError, open_recording, raw_records, seq_of
+from btlog.record.reader import (
+    MALFORMED_MESSAGE,
+    RecordingError,
+    _records,
+    decode_metadata,
+    tree_of,
+)
 from btlog.record.recorder import DEFAULT_COMPRESSION, start_time_ns
-from btlog.record.walk import Dropped, Walk
+from btlog.record.salvage import (
+    MALFORMED,
+    Facts,
+    Item,
+    OutOfOrder,
+    Sifter,
+    Source,
+    check_message,
+)
+from btlog.record.walk import Dropped, Walk, mapped, records
 from btlog.schema import schema_text
 from btlog.tree.loader import load_tree
 
@@ -87,7 +104,11 @@ class RecoveryReport:
 
     def note_seqs(self, first: int, last: int) -> None:
         """Note that the seqs ``first..last`` of one message were saved."""
-        self._ranges.append((first, last))
+        ranges = self._ranges  # merged as they come (they come in seq order): a few
+        if ranges and ranges[-1][0] <= first <= ranges[-1][1] + 1:
+            ranges[-1] = (ranges[-1][0], max(last, ranges[-1][1]))
+        else:
+            ranges.append((first, last))
         if self.last_seq is None or last > self.last_seq:
             self.last_seq = last
 
@@ -109,11 +130,10 @@ class _Copier:
         self.report = report
         self.schemas: dict[int, int] = {0: 0}
         self.channels: dict[int, tuple[int, str]] = {}
+        self.sifter = Sifter()
 
     def copy(self, record: object) -> None:
-        if isinstance(record, Message):
-            self._message(record)
-        elif isinstance(record, Schema) and record.id not in self.schemas:
+        if isinstance(record, Schema) and record.id not in self.schemas:
             self.schemas[record.id] = self.writer.register_schema(
                 record.name, record.encoding, record.data
             )
@@ -132,37 +152,39 @@ class _Copier:
                 record.create_time, record.log_time, record.name, record.media_type, record.data
             )
 
-    def _message(self, message: Message) -> None:
+    def message(self, message: Message, topic: str, known: Facts) -> None:
+        """Copy one message (a copy met before dropped and counted; two different events
+        with one seq refused)."""
         channel = self.channels.get(message.channel_id)
         if channel is None:
             return
-        channel_id, topic = channel
-        self.writer.add_message(
-            channel_id, message.log_time, message.data, message.publish_time, message.sequence
-        )
-        self.report.messages += 1
+        if not self.sifter.fresh(message, known):
+            self.report.duplicates += 1
+            return
         try:
-            self._count(topic, message.data)
-        except (orjson.JSONDecodeError, AttributeError, TypeError, LookupError, ValueError):
-            self.report.warnings.append(
-                f"{self.report.source}: a {topic} message is not "
+            twice = self.sifter.twice(topic, message.data, known)
+        except MALFORMED:
+            twice = None
+        if twice is not None:
+            raise RecordingError(
+                f"{self.report.source}: what can be saved is not a recording: two different "
+                f"events have seq {twice}"
+            )
+        self.writer.add_message(
+            channel[0], message.log_time, message.data, message.publish_time, message.sequence
+        )
+        report = self.report
+        report.messages += 1
+        if not known.readable:
+            report.warnings.append(
+                f"{report.source}: a {topic} message is not "
                 "in the btlog format (copied, not counted)"
             )
-
-    def _count(self, topic: str, data: bytes) -> None:
-        if topic == fmt.EVENTS_TOPIC:
-            events = fmt.parse_events(data)
-            seqs = [row[0] for rows in (events.status, events.writes) for row in rows]
-            self.report.events += len(seqs)
-            if seqs:
-                self.report.note_seqs(min(seqs), max(seqs))
-        elif topic == fmt.MUTATIONS_TOPIC:
-            self.report.events += 1
-            seq = orjson.loads(data).get("seq")
-            if isinstance(seq, int):
-                self.report.note_seqs(seq, seq)
-        elif topic == fmt.TICKS_TOPIC:
-            self.report.ticks += sum(not r.teardown for r in fmt.decode_ticks(data))
+            return
+        report.events += known.events
+        report.ticks += known.ticks
+        if known.first is not None and known.last is not None:
+            report.note_seqs(known.first, known.last)
 
 
 def recover(broken: str | os.PathLike, fixed: str | os.PathLike) -> RecoveryReport:
@@ -178,84 +200,79 @@ def recover(broken: str | os.PathLike, fixed: str | os.PathLike) -> RecoveryRepo
     """
     source, target = Path(broken), Path(fixed)
     walk = Walk(str(source))
-    records = list(raw_records(source, walk))
-    if not records or not isinstance(records[0], Header):
-        raise RecordingError(f"{source}: not an MCAP file (no header record)")
-    report = RecoveryReport(source, target, truncated=walk.truncated)
-    report.warnings.extend(walk.warnings)
-    report.dropped.extend(walk.dropped)
-    others = [r for r in records[1:] if not isinstance(r, Message)]
-    metadata = next(
-        (r for r in others if isinstance(r, Metadata) and r.name == fmt.METADATA_NAME), None
-    )
-    if metadata is None:
-        damage = "".join(
-            f"; {d.length} damaged bytes at byte {d.offset}" for d in report.dropped[:1]
+    with mapped(source) as (data, size):
+        header, others, used = _survey(data, size, walk)
+        if header is None:
+            raise RecordingError(f"{source}: not an MCAP file (no header record)")
+        metadata = next(
+            (r for r in others if isinstance(r, Metadata) and r.name == fmt.METADATA_NAME), None
         )
-        raise RecordingError(
-            f"{source}: nothing to recover: no {fmt.METADATA_NAME} metadata{damage}"
-        )
-    topics = {r.id: r.topic for r in others if isinstance(r, Channel)}
-    messages = _in_order(records[1:], topics, report)
-    if not any(topics.get(m.channel_id) == fmt.TREE_TOPIC for m in messages):
-        others, messages = _with_rebuilt_tree(source, others, messages, metadata, report)
-    _rewrite([*others, *messages], target, records[0].library, report)
+        if metadata is None:
+            damage = "".join(
+                f"; {d.length} damaged bytes at byte {d.offset}" for d in walk.dropped[:1]
+            )
+            raise RecordingError(
+                f"{source}: nothing to recover: no {fmt.METADATA_NAME} metadata{damage}"
+            )
+        topics = {r.id: r.topic for r in others if isinstance(r, Channel)}
+        tree: list[Message] = []
+        rebuilt = RecoveryReport(source, target, truncated=walk.truncated)
+        if not any(topics.get(channel) == fmt.TREE_TOPIC for channel in used):
+            others, message = _with_rebuilt_tree(source, others, metadata, rebuilt)
+            tree = [message]
+            topics[message.channel_id] = fmt.TREE_TOPIC
+        messages = Source(data, size, walk, topics)
+        for order in (messages.in_file_order, messages.in_seq_order):
+            report = RecoveryReport(source, target, truncated=walk.truncated)
+            report.warnings.extend(walk.warnings)
+            report.dropped.extend(walk.dropped)
+            report.tree_rebuilt = rebuilt.tree_rebuilt if tree else ""
+            try:
+                _rewrite(target, header.library, report, others, _with(tree, order))
+                break
+            except OutOfOrder:
+                continue
     report.find_missing()
     return report
 
 
-#: The rank of each topic's messages in a recovered file (events and mutations share
-#: the seq order).
-_RANKS = {
-    fmt.TREE_TOPIC: 0,
-    fmt.EVENTS_TOPIC: 1,
-    fmt.MUTATIONS_TOPIC: 1,
-    fmt.TICKS_TOPIC: 2,
-    fmt.ANSWERS_TOPIC: 3,
-}
+def _with(first: list[Message], order: Callable[[], Iterator[Item]]) -> Iterator[Item]:
+    """The messages ``first`` (the rebuilt tree), then those of ``order``."""
+    for message in first:
+        yield message, fmt.TREE_TOPIC, Facts(0, -1)
+    yield from order()
 
 
-def _in_order(records: list, topics: dict[int, str], report: RecoveryReport) -> list[Message]:
-    """The messages of ``records``, each once, in seq order within their topic."""
-    seen: set[tuple[int, int, bytes]] = set()
-    keyed = []
-    for index, record in enumerate(records):
-        if not isinstance(record, Message):
+def _survey(data: object, size: int, walk: Walk) -> tuple[Header | None, list, set[int]]:
+    """The file's header (None if its first record is not one), its other records but
+    messages (schemas, channels, metadata, attachments) and the channels its messages
+    use; the walk notes a cut, damaged bytes and warnings."""
+    header: Header | None = None
+    others: list = []
+    used: set[int] = set()
+    first = True
+    for opcode, buffer, body, end in records(data, size, walk):  # type: ignore[arg-type]
+        if opcode == Opcode.MESSAGE and end - body >= 2:
+            used.add(int.from_bytes(buffer[body : body + 2], "little"))
+            first = False
             continue
-        identity = (record.channel_id, record.log_time, record.data)
-        if identity in seen:
-            report.duplicates += 1
+        record = walk.parse(opcode, buffer, body, end)
+        if record is None:
             continue
-        seen.add(identity)
-        topic = topics.get(record.channel_id, "")
-        keyed.append(((_RANKS.get(topic, 4), _first_number(topic, record.data), index), record))
-    keyed.sort(key=lambda pair: pair[0])
-    return [record for _key, record in keyed]
-
-
-def _first_number(topic: str, data: bytes) -> int:
-    """The first seq (tick for ticks) a message holds; -1 if it cannot be read."""
-    try:
-        if topic == fmt.EVENTS_TOPIC:
-            events = fmt.parse_events(data)
-            return min(
-                (row[0] for rows in (events.status, events.writes) for row in rows), default=-1
-            )
-        if topic == fmt.TICKS_TOPIC:
-            return min((t.tick for t in fmt.decode_ticks(data)), default=-1)
-        if topic in (fmt.MUTATIONS_TOPIC, fmt.ANSWERS_TOPIC):
-            return seq_of(orjson.loads(data))
-    except (orjson.JSONDecodeError, AttributeError, TypeError, LookupError, ValueError):
-        pass
-    return -1
+        if first and isinstance(record, Header):
+            header = record
+        elif isinstance(record, Schema | Channel | Metadata | Attachment):
+            others.append(record)
+        first = False
+    return header, others, used
 
 
 def _with_rebuilt_tree(
-    source: Path, others: list, messages: list[Message], metadata: Metadata, report: RecoveryReport
-) -> tuple[list, list[Message]]:
-    """``others`` and ``messages`` with a ``/btlog/tree`` message made from the tree files
-    attached (the tree's channel registered if it was lost too); RecordingError when
-    there are none or they do not load."""
+    source: Path, others: list, metadata: Metadata, report: RecoveryReport
+) -> tuple[list, Message]:
+    """``others`` (the tree's channel registered if it was lost too) and a
+    ``/btlog/tree`` message made from the tree files attached; RecordingError when there
+    are none or they do not load."""
     files = {r.name: r.data for r in others if isinstance(r, Attachment)}
     if not files:
         raise RecordingError(
@@ -303,20 +320,24 @@ def _with_rebuilt_tree(
         channel_id=channel.id, sequence=0, log_time=start, publish_time=start, data=data
     )
     report.tree_rebuilt = main
-    return others, [message, *messages]
+    return others, message
 
 
-def _rewrite(records: list, target: Path, library: str, report: RecoveryReport) -> None:
-    """Write ``records`` into ``target`` through a temporary file in the same folder,
-    read back (a file nothing can read never replaces ``target``)."""
+def _rewrite(
+    target: Path, library: str, report: RecoveryReport, others: list, messages: Iterator[Item]
+) -> None:
+    """Write ``others`` then ``messages`` into ``target`` through a temporary file in the
+    same folder, read back (a file nothing can read never replaces ``target``)."""
     temporary = target.with_name(f".{target.name}.{os.getpid()}.recovering")
     try:
         with open(temporary, "wb") as out:
             writer = Writer(out, compression=DEFAULT_COMPRESSION)
             writer.start(profile="", library=library)
             copier = _Copier(writer, report)
-            for record in records:
+            for record in others:
                 copier.copy(record)
+            for message, topic, known in messages:
+                copier.message(message, topic, known)
             writer.finish()
         _check_readable(report.source, temporary)
         os.replace(temporary, target)
@@ -329,16 +350,29 @@ def _rewrite(records: list, target: Path, library: str, report: RecoveryReport) 
 
 
 def _check_readable(source: Path, written: Path) -> None:
-    """RecordingError naming ``source`` unless ``written`` reads as a recording whose
-    events have distinct seqs."""
+    """RecordingError naming ``source`` unless ``written`` reads as a recording: its
+    records whole, its ``btlog.run`` metadata and tree sound, every message in the
+    btlog format (read a message at a time; the binary columns checked, not decoded)."""
+    name = str(written)
+    walk = Walk(name)
+    metadata = tree = None
     try:
-        recording = open_recording(written)
-    except RecordingError as error:
-        problem = str(error).replace(str(written), "the result")
+        for record in _records(written, walk):
+            if type(record) is tuple:
+                topic, message = record
+                if topic == fmt.TREE_TOPIC and tree is None:
+                    tree = orjson.loads(message.data)
+                else:
+                    check_message(topic, message.data)
+            elif isinstance(record, Metadata) and record.name == fmt.METADATA_NAME:
+                metadata = metadata or record.metadata
+        if metadata is None:
+            raise RecordingError(f"{name}: not a btlog recording: no {fmt.METADATA_NAME} metadata")
+        decode_metadata(name, metadata)
+        tree_of(name, tree, walk)
+    except (RecordingError, *MALFORMED_MESSAGE) as error:
+        problem = str(error).replace(name, "the result")
+        if not isinstance(error, RecordingError):
+            kind = type(error).__name__
+            problem = f"a message does not follow the btlog format: {kind}: {problem}"
         raise RecordingError(f"{source}: what can be saved is not a recording: {problem}") from None
-    seqs = [event.seq for event in recording.events]
-    twice = next((a for a, b in pairwise(seqs) if a == b), None)
-    if twice is not None:
-        raise RecordingError(
-            f"{source}: what can be saved is not a recording: two different events have seq {twice}"
-        )
