@@ -321,10 +321,18 @@ def episode_sentence(tree: Tree, failed: Transition, leaf: Node, history: Histor
     text, _blamed = diagnose_over_history(then_tree.nodes.get(leaf.uid), then_tree, then, history)
     if text != NOTHING_WRONG:
         return text
-    node = spoken(tree.node(failed.uid), goal_words(tree))
     done = history.last([leaf.uid], (FAILURE,), 0, failed.seq + 1)
     reason = "" if done is None else grounds(tree, leaf, done, history)
-    return f"I could not {node} because {words(leaf)} failed{reason}."
+    return could_not(tree, tree.node(failed.uid), leaf, reason)
+
+
+def could_not(tree: Tree, node: Node, leaf: Node, reason: str = "") -> str:
+    """``I could not {node} because {leaf} failed{reason}.``: ``node`` as spoken (the goal
+    for the root), ``reason`` the leaf's grounds. An episode Algorithm 7 is silent about
+    is told so, and the run's story names each kind of failure so."""
+    goal = goal_words(tree)
+    what = goal if node is tree.root else spoken(node, goal)
+    return f"I could not {what} because {words(leaf)} failed{reason}."
 
 
 def _last_real_failure(tree: Tree, handler: Node, now: int, history: History) -> Transition | None:

@@ -79,11 +79,13 @@ class SidePanels {
       el("div", { class: "muted" }, item, gap.why);
     }
     const runs = story.goal_runs || [];
-    if (runs.length > 1) {  // a goal run again and again (a tree ticked in a loop)
-      el("div", { class: "muted" }, box, `The goal ran ${runs.length} times:`);
+    const runCount = story.goal_run_count ?? runs.length;  // the first runs and the last are listed
+    if (runCount > 1) {  // a goal run again and again (a tree ticked in a loop)
+      el("div", { class: "muted" }, box, `The goal ran ${runCount} times:`);
       const runList = el("ol", { class: "runs" }, box);
-      for (const run of runs) {
-        const item = el("li", {}, runList);
+      for (const [index, run] of runs.entries()) {
+        const last = index === runs.length - 1 && runCount > runs.length;
+        const item = el("li", last ? { value: runCount } : {}, runList);
         const link = el("a", { href: "#", class: "moment-link", "data-t-ns": run.start_ns }, item,
           run.end_ns === null || run.end_ns === undefined ? `running since ${seconds(run.start_ns)}`
             : `${run.result || "halted"} in ${seconds(run.end_ns - run.start_ns)}`);
@@ -91,8 +93,9 @@ class SidePanels {
       }
     }
     const episodes = story.episodes || [];
-    const told = episodes.reduce((sum, episode) => sum + (episode.count || 1), 0);
-    el("div", { class: "muted" }, box, told ? `Failures: ${told}.` : "No failures.");
+    const told = story.failure_episodes ?? episodes.reduce((sum, episode) => sum + (episode.count || 1), 0);
+    const atLeast = story.examined_all_failures === false ? "at least " : "";
+    el("div", { class: "muted" }, box, told || atLeast ? `Failures: ${atLeast}${told}.` : "No failures.");
     const list = el("ol", { class: "episodes" }, box);
     for (const episode of episodes) {
       const item = el("li", {}, list);
@@ -106,8 +109,15 @@ class SidePanels {
       });
       const sentence = episode.what_went_wrong ?? episode.sentence ?? episode.text ?? "";
       if (sentence) el("div", {}, item, sentence);
-      const handling = Array.isArray(episode.handling) ? episode.handling.join("; ") : episode.handling;
+      const ways = Object.entries(episode.handled_so || {}).map(([way, n]) => `${n}× ${way}`);
+      const handling = ways.length ? ways.join("; ")
+        : Array.isArray(episode.handling) ? episode.handling.join("; ") : episode.handling;
       if (handling) el("div", { class: "muted" }, item, handling);
+    }
+    const listed = episodes.reduce((sum, episode) => sum + (episode.count || 1), 0);
+    if ((story.failure_kinds || 0) > episodes.length) {
+      el("div", { class: "muted" }, box, `… and ${story.failure_kinds - episodes.length} other ` +
+        `kinds of failure (${told - listed} episodes).`);
     }
     if (story.guard_failures) {
       el("div", { class: "muted" }, box, `(${story.guard_failures} ` +
