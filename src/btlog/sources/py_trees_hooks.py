@@ -4,7 +4,7 @@
 ``stop()`` — a behaviour completing (every SUCCESS, FAILURE and INVALID goes through it),
 a composite resetting its children, a Selector invalidating a pre-empted lower-priority
 child it does not visit, ``tree.interrupt()`` — and, for RUNNING, in a behaviour's own
-``tick()`` just before it yields itself. ``StatusWatch`` watches both where they happen:
+``tick()`` just before it yields itself. ``TreeWatch`` watches both where they happen:
 
 - each watched behaviour gets a ``stop`` of its own (an instance attribute) that calls the
   one it had and then, when the status is not the one last seen, appends the change,
@@ -26,6 +26,12 @@ a tick take the tick's time). Together they give every change py_trees makes, in
 order. A status assigned anywhere else (a user's behaviour writing ``self.status``) is
 found by ``sweep`` at the tick's end, so the recorded state after every tick is the
 tree's whatever the code does; ``unwatch`` gives the behaviour its ``stop`` back.
+
+**Children.** A composite's ``add_child``, ``insert_child``, ``prepend_child``,
+``remove_child`` and ``remove_all_children`` are given the same way (``watch_children``):
+py_trees' other ways to change children (``add_children``, ``replace_child``, the tree's
+``insert_subtree``, ``prune_subtree``, ``replace_subtree``) go through them, so every
+change of the tree's shape reaches the recorder, at no cost per tick.
 
 **Blackboard.** py_trees reports blackboard activity to ``Blackboard.activity_stream``
 when one is enabled. ``ActivityTap`` takes its place while recording: each write, first
