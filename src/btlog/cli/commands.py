@@ -3,13 +3,13 @@
 from __future__ import annotations
 
 import csv
-import io
 import json
 import sys
 from argparse import Namespace
 from collections import Counter
 from collections.abc import Iterator
 from contextlib import contextmanager
+from itertools import islice
 from pathlib import Path
 from typing import TYPE_CHECKING
 
@@ -372,37 +372,59 @@ def sql(args: Namespace) -> int:
         from btlog.cli.fleet import lake_sql
 
         columns, rows = lake_sql(args)
+        print_rows(args.format, columns, iter(rows))
     elif not args.runs:
         raise ValueError("sql: give at least one recording (or --lake LAKE)")
     else:
         database = _open_runs(*args.runs)
         try:
             database.lock()
-            columns, rows = database.sql(args.query, timeout=args.timeout)
+            with database.sql_rows(args.query, timeout=args.timeout) as (columns, streamed):
+                print_rows(args.format, columns, streamed)
         finally:
             database.close()
-    if args.format == "json":
-        print(
-            json.dumps(
-                [dict(zip(columns, row, strict=True)) for row in rows], default=str, indent=2
-            )
-        )
-    elif args.format == "csv":
-        buffer = io.StringIO()
-        writer = csv.writer(buffer, lineterminator="\n")  # a Unix tool's lines, not CRLF
+    return 0
+
+
+#: Rows of ``sql``'s table output drawn as one table (a longer result: one a block).
+TABLE_ROWS = 10_000
+
+
+def batched(rows: Iterator[tuple], size: int) -> Iterator[list[tuple]]:
+    """``rows`` in lists of ``size`` (the last shorter)."""
+    while block := list(islice(rows, size)):
+        yield block
+
+
+def print_rows(form: str, columns: list[str], rows: Iterator[tuple]) -> None:
+    """Print a query's rows as they come (bounded memory whatever their number): CSV,
+    a JSON array, or tables of ``TABLE_ROWS`` rows each."""
+    if form == "json":
+        opening = "["  # json.dumps(rows, indent=2), a row at a time
+        for row in rows:
+            item = json.dumps(dict(zip(columns, row, strict=True)), default=str, indent=2)
+            sys.stdout.write(f"{opening}\n  " + item.replace("\n", "\n  "))
+            opening = ","
+        sys.stdout.write("\n]\n" if opening == "," else "[]\n")
+    elif form == "csv":
+        writer = csv.writer(sys.stdout, lineterminator="\n")  # a Unix tool's lines, not CRLF
         writer.writerow([safe(c) for c in columns])
-        writer.writerows([["" if v is None else safe(v) for v in row] for row in rows])
-        sys.stdout.write(buffer.getvalue())
+        for block in batched(rows, TABLE_ROWS):
+            writer.writerows([["" if v is None else safe(v) for v in row] for row in block])
     else:
         from rich.table import Table
 
         from btlog.render.terminal import make_console
 
-        table = Table(*[safe(c) for c in columns])
-        for row in rows:
-            table.add_row(*[safe("NULL" if v is None else v) for v in row])
-        make_console().print(table)
-    return 0
+        console, empty = make_console(), True
+        for block in batched(rows, TABLE_ROWS):
+            table = Table(*[safe(c) for c in columns])
+            for row in block:
+                table.add_row(*[safe("NULL" if v is None else v) for v in row])
+            console.print(table)
+            empty = False
+        if empty:
+            console.print(Table(*[safe(c) for c in columns]))
 
 
 # -- files -------------------------------------------------------------------------------

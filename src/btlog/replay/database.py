@@ -25,7 +25,8 @@ from __future__ import annotations
 
 import os
 import re
-from collections.abc import Sequence
+from collections.abc import Iterator, Sequence
+from contextlib import AbstractContextManager, contextmanager
 from pathlib import Path
 from typing import TYPE_CHECKING
 
@@ -43,6 +44,9 @@ from btlog.replay.tables import INGEST_VERSION, PUBLIC_TABLES, create_schema, on
 
 if TYPE_CHECKING:  # ingestion (and pyarrow) is imported when a run is read, not when cached
     from btlog.replay import ingest as ingestion
+
+#: Rows a streamed query reads at a time (``query_rows``).
+FETCH_ROWS = 10_000
 
 CACHE_SUFFIX = ".duckdb"
 #: What a run id may hold (it is written into the views' SQL).
@@ -318,6 +322,12 @@ class RunDatabase:
         ``lock``ed, only queries are run."""
         return run_query(self.con, query, params, queries_only=self.locked, timeout=timeout)
 
+    def sql_rows(
+        self, query: str, timeout: float | None = None
+    ) -> AbstractContextManager[tuple[list[str], Iterator[tuple]]]:
+        """``sql`` streamed (``query_rows``): (column names, the rows as they are read)."""
+        return query_rows(self.con, query, queries_only=self.locked, timeout=timeout)
+
     def close(self) -> None:
         """Close the connection (the caches stay on disk)."""
         self.con.close()
@@ -339,6 +349,21 @@ def run_query(
     """Run ``query`` on ``con`` (only queries when ``queries_only``, see
     ``only_queries``) within ``timeout`` seconds; returns (column names, rows).
     ``ReplayError`` (one line) for bad SQL or a query stopped at its time limit."""
+    with query_rows(con, query, params, queries_only, timeout) as (columns, rows):
+        return columns, list(rows)
+
+
+@contextmanager
+def query_rows(
+    con: duckdb.DuckDBPyConnection,
+    query: str,
+    params: Sequence | dict | None = None,
+    queries_only: bool = True,
+    timeout: float | None = None,
+) -> Iterator[tuple[list[str], Iterator[tuple]]]:
+    """``run_query`` streamed: (column names, the rows as they are read, ``FETCH_ROWS``
+    at a time), so a result of any size is printed in bounded memory. The time limit
+    covers the query and the reading of its rows, and the errors are ``run_query``'s."""
     try:
         with time_limit(con, timeout):
             if queries_only:
@@ -347,12 +372,17 @@ def run_query(
             if cursor is None:  # DuckDB's answer to a query without a statement
                 raise ReplayError(f"SQL error: no statement in {query!r}")
             columns = [d[0] for d in cursor.description or ()]
-            rows = cursor.fetchall() if cursor.description else []
+            yield columns, _fetched(cursor) if cursor.description else iter(())
     except QueryTimeout as error:
         raise ReplayError(str(error)) from None
     except duckdb.Error as error:
         raise ReplayError(f"SQL error: {one_line(error)}") from None
-    return columns, rows
+
+
+def _fetched(cursor: duckdb.DuckDBPyConnection) -> Iterator[tuple]:
+    """The rows of ``cursor``'s result, ``FETCH_ROWS`` at a time."""
+    while rows := cursor.fetchmany(FETCH_ROWS):
+        yield from rows
 
 
 def only_queries(con: duckdb.DuckDBPyConnection, query: str) -> None:
