@@ -23,6 +23,7 @@ A goal whose root never completes is imported as it is, with the recording's met
 from __future__ import annotations
 
 import os
+import sys
 from collections.abc import Iterator
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -72,10 +73,11 @@ INCOMPLETE = (
 )
 
 
-@dataclass(frozen=True)
+@dataclass(frozen=True, slots=True)
 class LogEntry:
     """One BehaviorTreeStatusChange: absolute time, node name, uid (None if the bag's
-    message type has none) and statuses."""
+    message type has none) and statuses. The bag's entries are all held (goals are split
+    and names matched over them), so each is kept small: slots, and one string per name."""
 
     t_ns: int
     name: str
@@ -157,7 +159,7 @@ def _entries(decoded: object, number: int, where: str) -> Iterator[LogEntry]:
         uid = getattr(event, "uid", None)
         yield LogEntry(
             _stamp_ns(event.timestamp),
-            str(event.node_name),
+            sys.intern(str(event.node_name)),
             None if uid is None else int(uid),
             _status(event.previous_status, where),
             _status(event.current_status, where),
