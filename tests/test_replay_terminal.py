@@ -113,3 +113,16 @@ def test_ask_answers_at_the_moment_as_btlog_ask_does(chuck: Path) -> None:
                    input=f"g 12s\nask {question}\nq\n")  # fmt: skip
     assert replay.returncode == 0, replay.stderr
     assert replay.stdout.rstrip().splitlines()[-1] == asked.stdout.strip()
+
+
+def test_a_jump_lists_the_last_events_it_stepped_over_and_counts_the_rest(chuck: Path) -> None:
+    """A jump reads only the events it shows (a jump over a day-long run stays small)."""
+    replay = btlog("replay", chuck.name, "--plain", "--script", "-", cwd=chuck.parent,
+                   input="g seq:40\ng seq:10\nq\n")  # fmt: skip
+    assert replay.returncode == 0, replay.stderr
+    forward, back = replay.stdout.split("── event ")[2:]
+    assert forward.startswith("41/") and "  … 35 events, then:" in forward
+    assert [int(line.split()[0]) for line in forward.splitlines()[2:7]] == [36, 37, 38, 39, 40]
+    assert back.startswith("11/") and "  back over … 25 events, then:" in back
+    seqs = [int(line.split()[2]) for line in back.splitlines()[2:7]]
+    assert seqs == [36, 37, 38, 39, 40]

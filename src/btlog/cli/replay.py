@@ -113,11 +113,14 @@ class Stepper:
         self.header()
         if before is not None and before != self.position:
             low, high = sorted((before, self.position))
-            entries = self.run.timeline(start=f"seq:{low}", end=f"seq:{high - 1}")
+            # the last few only (a jump over a day-long run reads five events, not all):
+            # every seq is one event of the timeline
+            shown = max(low, high - SHOWN_EVENTS)
+            entries = self.run.timeline(start=f"seq:{shown}", end=f"seq:{high - 1}")
             verb = "" if self.position > before else "back over "
-            if len(entries) > SHOWN_EVENTS:
-                console.print(f"  {verb}… {len(entries) - SHOWN_EVENTS} events, then:")
-            for entry in entries[-SHOWN_EVENTS:]:
+            if shown > low:
+                console.print(f"  {verb}… {shown - low} events, then:")
+            for entry in entries:
                 console.print(f"  {verb}{timeline_line(entry._asdict())}", highlight=False)
         for node in current_nodes(tree, state):
             path = [*reversed([a.description for a in node.ancestors()]), node.description]
