@@ -83,9 +83,9 @@ WAYS = 3
 @dataclass
 class Episode:
     """A failure and how it was handled; ``count`` episodes read the same (or, in a
-    summary by kind, are of the same ``kind``: the node that could not be done and the
-    failed leaf). ``at_seq``: the event after which ``btlog explain --at seq:N`` asks
-    about the first; ``handled``: the handled failures of the episodes."""
+    summary by kind, are of the same kind: the failed leaf ``leaf_uid`` and its
+    subgoal). ``at_seq``: the event after which ``btlog explain --at seq:N`` asks about
+    the first; ``handled``: the handled failures of the episodes."""
 
     seq: int
     t_ns: int
@@ -94,7 +94,7 @@ class Episode:
     handling: list[str]
     count: int = 1
     last_t_ns: int = 0
-    kind: tuple[int, int] = (0, 0)
+    leaf_uid: int = 0
     at_seq: int = 0
     handled: int = 0
     failed: Transition | None = None
@@ -524,9 +524,8 @@ def _episodes(tree: Tree, state: State, history: History) -> tuple[list[Episode]
             continue
         if episode is None:
             leaf = tree.node(leaf_done.uid)
-            kind = (failed.uid, leaf.uid)
             episode = Episode(
-                leaf_done.seq, leaf_done.t_ns, words(leaf), "", [], kind=kind, failed=failed
+                leaf_done.seq, leaf_done.t_ns, words(leaf), "", [], leaf_uid=leaf.uid, failed=failed
             )
             episode.at_seq = failed.seq
             episodes.append(episode)
@@ -545,8 +544,9 @@ def _episodes(tree: Tree, state: State, history: History) -> tuple[list[Episode]
         if episode is None:
             sentence = _root_sentence(tree, root_done, history)
             leaf = tree.node(leaf_done.uid)
-            kind = (tree.root.uid, leaf.uid)
-            episode = Episode(leaf_done.seq, leaf_done.t_ns, words(leaf), sentence, [], kind=kind)
+            episode = Episode(
+                leaf_done.seq, leaf_done.t_ns, words(leaf), sentence, [], leaf_uid=leaf.uid
+            )
             episode.at_seq = root_done.seq
             episodes.append(episode)
         episode.handling.append(f"{PROPAGATED} to {goal_words(tree)}: the run failed")
@@ -573,7 +573,7 @@ def _told(tree: Tree, history: History, episodes: list[Episode]) -> tuple[list[E
     if len(episodes) <= MAX_EPISODES:
         for episode in episodes:
             if episode.failed is not None:
-                leaf = tree.node(episode.kind[1])
+                leaf = tree.node(episode.leaf_uid)
                 episode.sentence = episode_sentence(tree, episode.failed, leaf, history)
         grouped = _grouped([replace(e, ways={}) for e in episodes])
         if len(grouped) <= SCREEN:
@@ -581,7 +581,7 @@ def _told(tree: Tree, history: History, episodes: list[Episode]) -> tuple[list[E
     kinds: dict[str, Episode] = {}
     for episode in episodes:
         way = ", ".join(episode.way or episode.handling)
-        sentence = _kind_sentence(tree, tree.node(episode.kind[1]))
+        sentence = _kind_sentence(tree, tree.node(episode.leaf_uid))
         kind = kinds.get(sentence)
         if kind is None:
             kind = kinds[sentence] = replace(episode, sentence=sentence, handling=[], ways={})
