@@ -247,6 +247,13 @@ def export(args: Namespace) -> int:
         if streamed is not None:
             _warn(streamed.warnings)
             result = streamed.result
+    elif args.to == "nav2":  # the same, for the ROS 2 bag
+        from btlog.sinks.nav2_stream import stream_nav2
+
+        bag = stream_nav2(args.run, args.output)
+        if bag is not None:
+            result, warnings = bag
+            _warn(warnings)
     if result is None:
         recording = open_recording(args.run)
         _warn(recording.warnings)
