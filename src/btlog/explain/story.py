@@ -228,7 +228,7 @@ class Failures:
         more = "" if self.examined_all else "at least "
         if self.kinds:
             listed = sum(e.count for e in self.listed)
-            kinds = "of one kind" if self.kinds == 1 else f"of {self.kinds} kinds"
+            kinds = f"of {more}one kind" if self.kinds == 1 else f"of {more}{self.kinds} kinds"
             order = "" if self.kinds == 1 else ", the most frequent first"
             out = [
                 f"Failures: {more}{self.episodes}, {kinds}{order} "
