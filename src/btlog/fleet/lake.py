@@ -20,6 +20,7 @@ from __future__ import annotations
 
 import os
 import re
+import tempfile
 from collections.abc import Callable, Iterable, Iterator
 from contextlib import contextmanager
 from dataclasses import dataclass
@@ -68,8 +69,10 @@ def export_runs(
     ``jobs`` processes, then compact the partitions it wrote to (unless ``compact`` is
     false: several processes exporting into one lake compact once when all are done).
 
-    Each recording is read into memory on its own (no cache is written: an export is a
-    one-off pass over many files). The runs exported before an error are compacted too.
+    Each recording is read into a read model of its own in a temporary folder, removed
+    after (no cache is kept: an export is a one-off pass over many files), DuckDB
+    spilling there past its memory limit. The runs exported before an error are
+    compacted too.
     """
     root = Path(lake)
     paths = [os.fspath(r) for r in recordings]
@@ -96,7 +99,14 @@ def _export_serially(
     done = []
     columns: dict[str, list[str]] = {}
     for recording in paths:
-        with open_runs(recording, cache=False) as database:
+        # a read model on disk (DuckDB reads it within its memory limit, a day-long run
+        # too), in a folder of its own removed after: nothing is left in the cache
+        with (
+            tempfile.TemporaryDirectory(prefix="btlog-export-") as folder,
+            open_runs(recording, cache_dir=folder) as database,
+        ):
+            spill = os.path.join(folder, "spill")
+            database.con.execute(f"SET temp_directory = '{_quoted(spill)}'")
             exported = _export_run(database.run(), database.con, Path(lake), columns)
         done.append(exported)
         if on_run is not None:
