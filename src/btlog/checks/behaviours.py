@@ -15,8 +15,14 @@ from btlog.domains.outcomes import Outcomes, scripted_leaf_factory
 from btlog.events import EventLog
 from btlog.executor.clock import SimClock
 from btlog.executor.engine import Executor
-from btlog.explain.divergence import Divergence, ExecutedAction, actions_from_events, diverge
-from btlog.record.reader import Recording, open_recording
+from btlog.explain.divergence import (
+    ActionList,
+    Divergence,
+    ExecutedAction,
+    actions_from_events,
+    diverge,
+)
+from btlog.record.reader import Recording, UntidyRecording, open_recording, stream_events
 from btlog.record.walk import MAGIC
 from btlog.tree.loader import load_tree
 
@@ -26,16 +32,24 @@ NOMINAL_MAX_TICKS = 1000
 _MCAP_PREFIX = MAGIC[:5]
 
 
-def executed_actions(recording: Recording | str | os.PathLike[str]) -> list[ExecutedAction]:
-    """The executed actions of a recording (a ``Recording`` or the path of one)."""
+def executed_actions(recording: Recording | str | os.PathLike[str]) -> ActionList:
+    """The executed actions of a recording (a ``Recording`` or the path of one). A path
+    is read front to back without holding its events (``stream_events``) unless the file
+    is untidy (damaged, out of order): then it is read whole."""
     if isinstance(recording, str | os.PathLike):
+        streamed = stream_events(recording)
+        if streamed is not None:
+            try:
+                return actions_from_events(*streamed)
+            except UntidyRecording:
+                pass
         recording = open_recording(recording)
     return actions_from_events(recording.tree, recording.events)
 
 
 def nominal_actions(
     tree_path: str | os.PathLike[str], main_tree: str | None = None, trees: Sequence[str] = ()
-) -> list[ExecutedAction]:
+) -> ActionList:
     """The nominal sequence of a tree: its actions when every leaf succeeds at once.
 
     The tree (``main_tree`` of the file and of ``trees``, as ``load_tree`` chooses) runs in
@@ -66,7 +80,7 @@ def is_recording(path: str | os.PathLike[str]) -> bool:
 
 def actions_of(
     path: str | os.PathLike[str], main_tree: str | None = None, trees: Sequence[str] = ()
-) -> list[ExecutedAction]:
+) -> Sequence[ExecutedAction]:
     """The behaviour stored at ``path``: a recording's executed actions, or a tree XML's
     nominal sequence (``main_tree`` and ``trees`` as for ``nominal_actions``)."""
     if is_recording(path):

@@ -11,7 +11,7 @@ import os
 from dataclasses import dataclass
 
 from btlog.checks.behaviours import executed_actions
-from btlog.explain.divergence import ExecutedAction
+from btlog.explain.divergence import ActionList
 from btlog.explain.questions import answer
 from btlog.record.reader import Recording, open_recording
 from btlog.state import State
@@ -80,7 +80,7 @@ class StoredRun:
         return self._run.info.final_status or Status.IDLE.name
 
     @property
-    def actions(self) -> list[ExecutedAction]:
+    def actions(self) -> ActionList:
         """The run's executed actions (see ``btlog.explain.divergence``)."""
         return executed_actions(self.recording)
 

@@ -24,7 +24,7 @@ from btlog.checks.rerun import RerunReport, rerun
 from btlog.checks.stored_run import CheckResult
 from btlog.errors import EXIT_CHECK_FAILED, EXIT_OK
 from btlog.explain.divergence import to_json
-from btlog.render.divergence import render_lines
+from btlog.render.divergence import iter_lines
 from btlog.render.escape import safe
 from btlog.render.terminal import make_console
 
@@ -47,7 +47,7 @@ def diff(args: Namespace) -> int:
         print(json.dumps(to_json(divergence), indent=2))
         return verdict
     console = make_console(args.plain)
-    for text, kind in render_lines(divergence):
+    for text, kind in iter_lines(divergence):
         console.print(Text(text, style=_STYLES[kind]))
     return verdict
 

@@ -14,21 +14,25 @@ See docs/design.md, "Divergence".
 
 from __future__ import annotations
 
-from collections.abc import Iterable, Sequence
+from array import array
+from collections.abc import Iterable, Iterator, Mapping, Sequence
 from dataclasses import dataclass, replace
+from typing import overload
 
 from btlog.algorithms.sequence_diff import Comparison, compare
-from btlog.events import StatusChange
+from btlog.events import StatusChange, TreeMutation
 from btlog.explain.hierarchy import subgoal_of
 from btlog.state import StateProjection
 from btlog.status import FAILURE, IDLE, SKIPPED, SUCCESS
 from btlog.tree.model import Node, Tree
 
 __all__ = [
+    "ActionList",
     "Divergence",
     "ExecutedAction",
     "Move",
     "Row",
+    "Rows",
     "SubgoalDivergence",
     "actions_from_events",
     "compare_subgoal",
@@ -88,28 +92,92 @@ def _action(seq: int, node: Node, tree: Tree) -> ExecutedAction:
     )
 
 
-def actions_from_events(tree: Tree, events: Iterable) -> list[ExecutedAction]:
-    """The executed actions of a run of ``tree`` (the tree at the start) given its events.
+_RESULTS = (None, SUCCESS.name, FAILURE.name)
+
+
+class ActionList(Sequence[ExecutedAction]):
+    """Executed actions stored compactly (about 13 bytes each): the event seq, the index
+    of what the action is (an ``ExecutedAction`` with no seq nor result, kept once in
+    ``kinds``, a table shared by the lists cut from this one) and the result, in arrays;
+    an ``ExecutedAction`` is made when one is looked at, so a day-long run fits."""
+
+    def __init__(self, kinds: list[ExecutedAction] | None = None) -> None:
+        self.kinds: list[ExecutedAction] = [] if kinds is None else kinds
+        self.seqs = array("q")
+        self.kind_of = array("i")
+        self.results = array("b")
+
+    def __len__(self) -> int:
+        return len(self.seqs)
+
+    @overload
+    def __getitem__(self, index: int) -> ExecutedAction: ...
+    @overload
+    def __getitem__(self, index: slice) -> list[ExecutedAction]: ...
+    def __getitem__(self, index: int | slice) -> ExecutedAction | list[ExecutedAction]:
+        if isinstance(index, slice):
+            return [self[i] for i in range(*index.indices(len(self)))]
+        kind = self.kinds[self.kind_of[index]]
+        return replace(kind, seq=self.seqs[index], result=_RESULTS[self.results[index]])
+
+    def append(self, seq: int, kind: int) -> None:
+        """Add an action of kind ``kinds[kind]`` starting at ``seq`` (no result yet)."""
+        self.seqs.append(seq)
+        self.kind_of.append(kind)
+        self.results.append(0)
+
+    def descriptions(self) -> list[str]:
+        """d(n) of every action, in order (the strings are shared, not copied)."""
+        kinds = self.kinds
+        return [kinds[k].description for k in self.kind_of]
+
+    def subgoals(self) -> dict[str, ActionList]:
+        """The actions cut by subgoal, in order of first appearance."""
+        groups: dict[str, ActionList] = {}
+        for index, kind in enumerate(self.kind_of):
+            name = self.kinds[kind].subgoal
+            group = groups.get(name)
+            if group is None:
+                group = groups[name] = ActionList(self.kinds)
+            group.seqs.append(self.seqs[index])
+            group.kind_of.append(kind)
+            group.results.append(self.results[index])
+        return groups
+
+
+def actions_from_events(tree: Tree, events: Iterable) -> ActionList:
+    """The executed actions of a run of ``tree`` (the tree at the start) given its events
+    (folded once: an iterator streams).
 
     The events are folded through a ``StateProjection`` so that the tree's shape follows
     recorded mutations; an activation is an execution node's transition out of IDLE.
     """
     projection = StateProjection(tree)
-    actions: list[ExecutedAction] = []
+    actions = ActionList()
+    kinds: dict[ExecutedAction, int] = {}
+    known: dict[int, int] = {}  # uid -> kind while the tree's shape has not changed
     open_: dict[int, int] = {}
     for event in events:
         projection.apply(event)
         if type(event) is not StatusChange:
+            if type(event) is TreeMutation:
+                known.clear()
             continue
-        node = projection.tree.nodes.get(event.uid)
-        if node is None or not node.is_execution:
-            continue
+        kind = known.get(event.uid)
+        if kind is None:
+            node = projection.tree.nodes.get(event.uid)
+            if node is None or not node.is_execution:
+                continue
+            found = _action(0, node, projection.tree)
+            kind = kinds.setdefault(found, len(kinds))
+            if kind == len(actions.kinds):
+                actions.kinds.append(found)
+            known[event.uid] = kind
         if event.prev is IDLE and event.status not in (IDLE, SKIPPED):
             open_[event.uid] = len(actions)
-            actions.append(_action(event.seq, node, projection.tree))
+            actions.append(event.seq, kind)
         if event.status in (SUCCESS, FAILURE) and event.uid in open_:
-            index = open_.pop(event.uid)
-            actions[index] = replace(actions[index], result=event.status.name)
+            actions.results[open_.pop(event.uid)] = 1 if event.status is SUCCESS else 2
         elif event.status is IDLE:
             open_.pop(event.uid, None)
     return actions
@@ -168,10 +236,14 @@ class SubgoalDivergence:
     """The comparison of one subgoal's actions in behaviours A and B."""
 
     subgoal: str
-    a_actions: tuple[ExecutedAction, ...]
-    b_actions: tuple[ExecutedAction, ...]
+    a_actions: Sequence[ExecutedAction]
+    b_actions: Sequence[ExecutedAction]
     comparison: Comparison
-    rows: tuple[Row, ...]
+
+    @property
+    def rows(self) -> Rows:
+        """The side-by-side alignment, one ``Row`` per aligned pair (made when looked at)."""
+        return Rows(self.comparison, self.a_actions, self.b_actions)
 
     @property
     def edit_distance(self) -> int:
@@ -181,7 +253,7 @@ class SubgoalDivergence:
     @property
     def lcs(self) -> tuple[str, ...]:
         """A longest common subsequence of the action descriptions."""
-        return tuple(self.comparison.lcs)
+        return self.comparison.lcs
 
     @property
     def diverges(self) -> bool:
@@ -237,7 +309,7 @@ class SubgoalDivergence:
             "subgoal": self.subgoal,
             "edit_distance": self.edit_distance,
             "lcs": list(self.lcs),
-            "lcs_length": len(self.lcs),
+            "lcs_length": self.comparison.lcs_length,
             "a_count": len(self.a_actions),
             "b_count": len(self.b_actions),
             "divergent": listed,
@@ -290,31 +362,60 @@ class Divergence:
         raise KeyError(description)
 
 
-def _group(actions: Sequence[ExecutedAction]) -> dict[str, list[ExecutedAction]]:
+def _group(actions: Sequence[ExecutedAction]) -> Mapping[str, Sequence[ExecutedAction]]:
+    if isinstance(actions, ActionList):
+        return actions.subgoals()
     groups: dict[str, list[ExecutedAction]] = {}
     for action in actions:
         groups.setdefault(action.subgoal, []).append(action)
     return groups
 
 
-def _rows(
-    comparison: Comparison, a: Sequence[ExecutedAction], b: Sequence[ExecutedAction]
-) -> tuple[Row, ...]:
-    rows = []
-    for pair in comparison.alignment:
-        left = a[pair.a_index] if pair.a_index is not None else None
-        right = b[pair.b_index] if pair.b_index is not None else None
-        op = {"equal": "equal", "delete": "only_a", "insert": "only_b"}[pair.op]
-        rows.append(Row(op, left, right, pair.a_index, pair.b_index))
-    return tuple(rows)
+_OPS = {"equal": "equal", "delete": "only_a", "insert": "only_b"}
+
+
+class Rows(Sequence[Row]):
+    """The rows of a subgoal's alignment, each made from its aligned pair when looked at
+    (a day-long run's rows are never all held at once)."""
+
+    def __init__(
+        self, comparison: Comparison, a: Sequence[ExecutedAction], b: Sequence[ExecutedAction]
+    ) -> None:
+        self._ops, self._a, self._b = comparison.alignment.ops, a, b
+
+    def __len__(self) -> int:
+        return len(self._ops)
+
+    @overload
+    def __getitem__(self, index: int) -> Row: ...
+    @overload
+    def __getitem__(self, index: slice) -> list[Row]: ...
+    def __getitem__(self, index: int | slice) -> Row | list[Row]:
+        if isinstance(index, slice):
+            return [self[i] for i in range(*index.indices(len(self)))]
+        pair = self._ops[index]
+        left = self._a[pair.a_index] if pair.a_index is not None else None
+        right = self._b[pair.b_index] if pair.b_index is not None else None
+        return Row(_OPS[pair.op], left, right, pair.a_index, pair.b_index)
+
+    def __iter__(self) -> Iterator[Row]:
+        return (self[i] for i in range(len(self)))
+
+
+def _descriptions(actions: Sequence[ExecutedAction]) -> list[str]:
+    if isinstance(actions, ActionList):
+        return actions.descriptions()
+    return [x.description for x in actions]
 
 
 def compare_subgoal(
     subgoal: str, a: Sequence[ExecutedAction], b: Sequence[ExecutedAction]
 ) -> SubgoalDivergence:
     """Compare one subgoal's actions of A and B by description (O(NP))."""
-    comparison = compare([x.description for x in a], [x.description for x in b])
-    return SubgoalDivergence(subgoal, tuple(a), tuple(b), comparison, _rows(comparison, a, b))
+    comparison = compare(_descriptions(a), _descriptions(b))
+    keep_a = a if isinstance(a, ActionList) else tuple(a)
+    keep_b = b if isinstance(b, ActionList) else tuple(b)
+    return SubgoalDivergence(subgoal, keep_a, keep_b, comparison)
 
 
 def diverge(

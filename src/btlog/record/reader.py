@@ -230,6 +230,56 @@ def open_recording(path: str | os.PathLike) -> Recording:
     return _assemble(name, contents, walk)
 
 
+def stream_events(path: str | os.PathLike) -> tuple[Tree, Iterator[Any]] | None:
+    """The tree and the events of a recording read front to back without holding them,
+    for consumers that fold the events once (``btlog diff``); None when the file is not
+    a tidy recording (no tree before the first event, seqs out of order, damaged bytes):
+    ``open_recording`` then reads it whole and reports what is wrong."""
+    name = os.fspath(path)
+    walk = Walk(name)
+    records = _records(name, walk)
+    tree: dict | None = None
+    for record in records:
+        if type(record) is not tuple:
+            continue
+        topic, message = record
+        if topic == fmt.TREE_TOPIC:
+            tree = orjson.loads(message.data)
+            break
+        if topic in (fmt.EVENTS_TOPIC, fmt.MUTATIONS_TOPIC):
+            return None
+    if tree is None:
+        return None
+
+    def events() -> Iterator[Any]:
+        last = -1
+        for record in records:
+            if type(record) is not tuple:
+                continue
+            topic, message = record
+            batch: list[StatusChange | BlackboardWrite | TreeMutation]
+            if topic == fmt.EVENTS_TOPIC:
+                batch = list(fmt.decode_events(message.data))
+            elif topic == fmt.MUTATIONS_TOPIC:
+                batch = [fmt.decode_mutation(orjson.loads(message.data))]
+            else:
+                continue
+            for event in batch:
+                if event.seq != last + 1:
+                    raise UntidyRecording
+                last = event.seq
+                yield event
+        if walk.dropped:
+            raise UntidyRecording
+
+    return tree_of(name, tree, walk), events()
+
+
+class UntidyRecording(Exception):
+    """Raised by ``stream_events``' iterator when the file turns out not to be tidy (read
+    it with ``open_recording`` instead)."""
+
+
 def _assemble(name: str, contents: _Contents, walk: Walk) -> Recording:
     if contents.tree is None:
         tree_of(name, None, walk)

@@ -6,6 +6,8 @@ start with ``!`` and show the action's immediate parent, as in the paper's Fig. 
 
 from __future__ import annotations
 
+from collections.abc import Iterator
+
 from btlog.explain.divergence import Divergence, ExecutedAction, Move, SubgoalDivergence
 from btlog.render.escape import safe
 
@@ -31,7 +33,7 @@ def subgoal_header(found: SubgoalDivergence) -> str:
     """One line: the subgoal with its edit distance and LCS length."""
     line = (
         f'subgoal "{safe(found.subgoal)}": edit distance {found.edit_distance}, '
-        f"LCS length {len(found.lcs)} ({len(found.a_actions)} vs "
+        f"LCS length {found.comparison.lcs_length} ({len(found.a_actions)} vs "
         f"{len(found.b_actions)} actions)"
     )
     if found.moves:
@@ -40,30 +42,32 @@ def subgoal_header(found: SubgoalDivergence) -> str:
 
 
 def render_lines(divergence: Divergence, only_divergent: bool = False) -> list[tuple[str, str]]:
-    """The side-by-side report as ``(text, kind)`` lines; kind is "title", "header",
-    "row", "divergent", "blank" or "summary" (for styling). Divergent rows start with
-    ``!``; the missing side is blank. ``only_divergent`` leaves out the rows of subgoals
-    that agree."""
-    cells = [(_cell(r.a, r.divergent), r) for s in divergence.subgoals for r in s.rows]
-    width = max([len(c) for c, _ in cells] + [len(safe(divergence.a_label)) + 3, 20])
-    lines = [
-        (f"A: {safe(divergence.a_label)}", "title"),
-        (f"B: {safe(divergence.b_label)}", "title"),
-    ]
+    """The side-by-side report as a list of ``(text, kind)`` lines (see ``iter_lines``)."""
+    return list(iter_lines(divergence, only_divergent))
+
+
+def iter_lines(divergence: Divergence, only_divergent: bool = False) -> Iterator[tuple[str, str]]:
+    """The side-by-side report as ``(text, kind)`` lines, one at a time (a day-long run's
+    report is never held whole); kind is "title", "header", "row", "divergent", "blank"
+    or "summary" (for styling). Divergent rows start with ``!``; the missing side is
+    blank. ``only_divergent`` leaves out the rows of subgoals that agree."""
+    cells = (len(_cell(r.a, r.divergent)) for s in divergence.subgoals for r in s.rows)
+    width = max(max(cells, default=0), len(safe(divergence.a_label)) + 3, 20)
+    yield (f"A: {safe(divergence.a_label)}", "title")
+    yield (f"B: {safe(divergence.b_label)}", "title")
     for found in divergence.subgoals:
-        lines.append(("", "blank"))
-        lines.append((subgoal_header(found), "header"))
+        yield ("", "blank")
+        yield (subgoal_header(found), "header")
         if only_divergent and not found.diverges:
             continue
-        lines.append((f"    {'A':<{width}}   B", "header"))
+        yield (f"    {'A':<{width}}   B", "header")
         for row in found.rows:
             mark = "! " if row.divergent else "  "
             left, right = _cell(row.a, row.divergent), _cell(row.b, row.divergent)
             text = f"  {mark}{left:<{width}}   {right}".rstrip()
-            lines.append((text, "divergent" if row.divergent else "row"))
-    lines.append(("", "blank"))
-    lines.append((_summary(divergence), "summary"))
-    return lines
+            yield (text, "divergent" if row.divergent else "row")
+    yield ("", "blank")
+    yield (_summary(divergence), "summary")
 
 
 def _summary(divergence: Divergence) -> str:
@@ -79,4 +83,4 @@ def _summary(divergence: Divergence) -> str:
 
 def render(divergence: Divergence, only_divergent: bool = False) -> str:
     """The side-by-side report as plain text (see ``render_lines``)."""
-    return "\n".join(text for text, _ in render_lines(divergence, only_divergent))
+    return "\n".join(text for text, _ in iter_lines(divergence, only_divergent))
