@@ -17,15 +17,23 @@ from __future__ import annotations
 
 import json
 import os
+import random
 import subprocess
 import sys
 from pathlib import Path
 
 import pytest
 
+from btlog.algorithms.sequence_diff import compare
 from btlog.checks.behaviours import diff_paths, executed_actions, nominal_actions
-from btlog.explain.divergence import ExecutedAction, diverge, to_json
-from btlog.record.reader import open_recording
+from btlog.explain.divergence import (
+    ExecutedAction,
+    actions_from_events,
+    compare_subgoal,
+    diverge,
+    to_json,
+)
+from btlog.record.reader import open_recording, stream_events
 from btlog.render.divergence import render
 from btlog.runner import RunConfig, execute
 
@@ -217,3 +225,33 @@ def test_diff_command_plain_and_json(taxi_runs):
     )
     assert missing.returncode == 2
     assert len(missing.stderr.strip().splitlines()) == 1 and "nope.mcap" in missing.stderr
+
+
+def test_a_recording_is_streamed_into_the_same_actions_as_read_whole(taxi_runs):
+    """``executed_actions`` of a path folds the file front to back into compact arrays;
+    every action (seq, node, parent, subgoal, result) is what the whole read gives."""
+    for path in taxi_runs.values():
+        assert stream_events(path) is not None  # a tidy file: read front to back
+        recording = open_recording(path)
+        whole = actions_from_events(recording.tree, list(recording.events))
+        streamed = executed_actions(path)
+        assert len(streamed) == len(whole) >= 10
+        assert list(streamed) == list(whole)
+        assert {a.result for a in streamed} == {"SUCCESS"}
+
+
+def test_the_common_prefix_walked_first_gives_the_alignment_of_the_whole():
+    """Walking the shared first actions before the O(NP) search changes no row: the same
+    alignment as comparing the whole sequences, on many random pairs."""
+    generator = random.Random(7)
+    for _ in range(2000):
+        a = [_action(generator.choice("xyz"), i) for i in range(generator.randint(0, 9))]
+        b = [_action(generator.choice("xyz"), i) for i in range(generator.randint(0, 9))]
+        found = compare_subgoal("s", a, b)
+        whole = compare([x.description for x in a], [x.description for x in b])
+        rows = [(r.op, r.a_index, r.b_index) for r in found.rows]
+        ops = {"equal": "equal", "delete": "only_a", "insert": "only_b"}
+        expected = [(ops[p.op], p.a_index, p.b_index) for p in whole.alignment]
+        assert rows == expected
+        assert found.lcs == whole.lcs and found.lcs_length == whole.lcs_length
+        assert found.edit_distance == whole.edit_distance

@@ -128,7 +128,7 @@ def subgoal_check(found: SubgoalDivergence) -> CheckResult:
     expected = f"the {len(found.a_actions)} recorded actions"
     if not found.diverges:
         return CheckResult(True, what, expected, f"the same {len(found.b_actions)} actions")
-    parts = [f"edit distance {found.edit_distance}, LCS length {len(found.lcs)}"]
+    parts = [f"edit distance {found.edit_distance}, LCS length {found.lcs_length}"]
     parts += [move_text(move) for move in found.moves]
     moved = set(found.moved)
     only_a = [_action_text(a) for a in found.only_a if a.description not in moved]

@@ -33,7 +33,7 @@ def subgoal_header(found: SubgoalDivergence) -> str:
     """One line: the subgoal with its edit distance and LCS length."""
     line = (
         f'subgoal "{safe(found.subgoal)}": edit distance {found.edit_distance}, '
-        f"LCS length {found.comparison.lcs_length} ({len(found.a_actions)} vs "
+        f"LCS length {found.lcs_length} ({len(found.a_actions)} vs "
         f"{len(found.b_actions)} actions)"
     )
     if found.moves:
