@@ -116,18 +116,38 @@ def never_named(tree: Tree, first: Mapping[int, Status], began: Mapping[int, Sta
     return ", ".join(repr(tree.nodes[uid].name) for uid in sorted(began) if uid not in first)
 
 
+class OmittedCount:
+    """Counts the changes (uid, previous status, status) that name a previous status
+    their node's earlier changes did not leave it in: the changes
+    ``RecordingBuilder.logged`` adds. From the state ``began``; or, without it, from
+    the state ``state_at_first_entry`` gives (each node's first change starts from its
+    own previous status, so it never counts), which lets a log be counted as it is read."""
+
+    __slots__ = ("count", "inferred", "status")
+
+    def __init__(self, began: Mapping[int, Status] | None = None) -> None:
+        self.status: dict[int, Status] = dict(began or {})
+        self.inferred = began is None
+        self.count = 0
+
+    def add(self, uid: int, prev: Status, new: Status) -> None:
+        """Count one change."""
+        last = self.status.get(uid)
+        if last is None:
+            last = prev if self.inferred else IDLE
+        self.count += prev is not last
+        self.status[uid] = new
+
+
 def omitted_changes(
     changes: Iterable[tuple[int, Status, Status]], began: Mapping[int, Status]
 ) -> int:
     """How many of ``changes`` (uid, previous status, status), from the state ``began``,
-    name a previous status their node's earlier changes did not leave it in: the changes
-    ``RecordingBuilder.logged`` adds."""
-    status = dict(began)
-    count = 0
+    ``OmittedCount`` counts."""
+    counter = OmittedCount(began)
     for uid, prev, new in changes:
-        count += prev is not status.get(uid, IDLE)
-        status[uid] = new
-    return count
+        counter.add(uid, prev, new)
+    return counter.count
 
 
 @dataclass

@@ -45,7 +45,7 @@ none wrong.
 from __future__ import annotations
 
 import itertools
-from collections.abc import Sequence
+from collections.abc import Iterable, Mapping, Sequence
 from dataclasses import dataclass
 
 from btlog.sources.builder import SourceError
@@ -151,19 +151,28 @@ def logged_names(node: Node) -> set[str]:
 def match_names(entries: Sequence[Entry], tree: Tree, where: str) -> list[int]:
     """The uid of each entry (see the module docstring); ``SourceError`` naming the file
     when a name is not in the tree, or when shared names cannot be told apart."""
-    groups: dict[str, list[int]] = {}
-    for node in tree:
-        for name in logged_names(node):
-            groups.setdefault(name, []).append(node.uid)
-    for entry in entries:
-        if entry.name not in groups:
-            raise SourceError(
-                f"{where}: the log names node {entry.name!r}, which the tree does not have"
-            )
+    groups = name_groups(tree)
+    check_names((e.name for e in entries), groups, where)
     shared = {e.name for e in entries if len(groups[e.name]) > 1}
     if not shared:
         return [groups[e.name][0] for e in entries]
     return _Matcher(entries, tree, groups, shared, where).run()
+
+
+def name_groups(tree: Tree) -> dict[str, list[int]]:
+    """The uids of the tree's nodes by each name BT.CPP logs them by."""
+    groups: dict[str, list[int]] = {}
+    for node in tree:
+        for name in logged_names(node):
+            groups.setdefault(name, []).append(node.uid)
+    return groups
+
+
+def check_names(names: Iterable[str], groups: Mapping[str, list[int]], where: str) -> None:
+    """``SourceError`` naming the file for the first of ``names`` the tree does not have."""
+    for name in names:
+        if name not in groups:
+            raise SourceError(f"{where}: the log names node {name!r}, which the tree does not have")
 
 
 class _Matcher:

@@ -22,9 +22,12 @@ A goal whose root never completes is imported as it is, with the recording's met
 
 from __future__ import annotations
 
+import collections
+import itertools
 import os
 import sys
-from collections.abc import Iterator
+from array import array
+from collections.abc import Iterable, Iterator
 from dataclasses import dataclass, field
 from pathlib import Path
 
@@ -32,16 +35,22 @@ from btlog.sources.btcpp_tree import tree_from_file, tree_from_log_xml
 from btlog.sources.builder import (
     DEFAULT_TICK_GAP_NS,
     BuildResult,
+    OmittedCount,
     RecordingBuilder,
     Source,
     SourceError,
     never_named,
-    omitted_changes,
     state_at_first_entry,
     wall_start,
 )
-from btlog.sources.name_matching import Entry, logged_names, match_names
-from btlog.sources.rosbag2 import open_bag
+from btlog.sources.name_matching import (
+    Entry,
+    check_names,
+    logged_names,
+    match_names,
+    name_groups,
+)
+from btlog.sources.rosbag2 import Bag, open_bag
 from btlog.status import FAILURE, IDLE, SUCCESS, Status
 from btlog.tree.loader import TreeError, load_tree
 from btlog.tree.model import Tree
@@ -76,8 +85,9 @@ INCOMPLETE = (
 @dataclass(frozen=True, slots=True)
 class LogEntry:
     """One BehaviorTreeStatusChange: absolute time, node name, uid (None if the bag's
-    message type has none) and statuses. The bag's entries are all held (goals are split
-    and names matched over them), so each is kept small: slots, and one string per name."""
+    message type has none) and statuses. The bag is read in passes, not held (only a
+    name-only log whose names the tree shares is held, as ``Entry``s, for
+    ``match_names``)."""
 
     t_ns: int
     name: str
@@ -90,26 +100,66 @@ class LogEntry:
 
 @dataclass
 class BagLog:
-    """The entries of ``/behavior_tree_log`` in order, and the tree XML if the bag has it."""
+    """What the first pass over ``/behavior_tree_log`` found (and the tree XML if the bag
+    has it): counts, the names and (uid, name) pairs in order of first entry."""
 
     file: str
-    entries: list[LogEntry]
-    messages: int
+    messages: int = 0
+    entries: int = 0
     tree_xml: bytes | None = None
     warnings: list[str] = field(default_factory=list)
     #: where the message definition came from: "bag", or the Nav2 releases of btlog's
     layout: str = ""
     #: the bag's storage files, in order
     files: list[str] = field(default_factory=list)
+    #: the distinct (uid, name) pairs; None once an entry has no uid
+    pairs: dict[tuple[int, str], None] | None = field(default_factory=dict)
+    names: dict[str, None] = field(default_factory=dict)
 
 
 @dataclass
 class Goal:
-    """The entries of one goal (as uids of the tree) and whether its result is missing."""
+    """One goal: its entries' count, first time, each node's previous status in its first
+    entry, the changes the log leaves out and whether its result is missing."""
 
     index: int
-    entries: list[tuple[LogEntry, int]] = field(default_factory=list)
+    start_ns: int
+    count: int = 0
+    first: dict[int, Status] = field(default_factory=dict)
+    omitted: OmittedCount = field(default_factory=OmittedCount)
     complete: bool = False
+
+
+class GoalSplitter:
+    """Splits the entries, as they are read, into goals: a goal starts when the root
+    leaves IDLE after the previous goal's result, or while the log still has it running
+    (that goal's end is missing). A root leaving IDLE within a goal (Nav2's RecoveryNode
+    halts itself before it returns its result) does not start one. Entries before the
+    first start form a goal of their own: the bag began during it."""
+
+    def __init__(self, root: int) -> None:
+        self.root = root
+        self.root_status: Status = IDLE
+        self.goals: list[Goal] = []
+
+    def add(self, t_ns: int, uid: int, prev: Status, status: Status) -> None:
+        """The next entry, as a uid of the tree."""
+        goals = self.goals
+        if uid == self.root and status is not IDLE and prev is IDLE:
+            if not goals or goals[-1].complete or self.root_status is not IDLE:
+                if goals:  # its count is kept; the statuses it was counted from are not
+                    goals[-1].omitted.status.clear()
+                goals.append(Goal(len(goals) + 1, t_ns))
+        elif not goals:
+            goals.append(Goal(1, t_ns))
+        goal = goals[-1]
+        goal.count += 1
+        goal.first.setdefault(uid, prev)
+        goal.omitted.add(uid, prev, status)
+        if uid == self.root:
+            self.root_status = status
+            if status in (SUCCESS, FAILURE):
+                goal.complete = True
 
 
 def _status(text: str, where: str) -> Status:
@@ -123,35 +173,61 @@ def _stamp_ns(stamp: object) -> int:
     return int(getattr(stamp, "sec", 0)) * 1_000_000_000 + int(getattr(stamp, "nanosec", 0))
 
 
-def read_bag(path: str | os.PathLike) -> BagLog:
-    """Read and decode ``/behavior_tree_log`` (and the tree XML topic, if any) of a bag in
-    MCAP or SQLite storage (``btlog.sources.rosbag2``); what the bag's damage cost is
-    in the warnings."""
-    with open_bag(path) as bag:
-        log = BagLog(bag.path, [], 0)
-        topic = bag.topics.get(LOG_TOPIC)
-        if topic is None:
-            listed = ", ".join(sorted(bag.topics)) or "none"
-            raise SourceError(f"{bag.path}: no {LOG_TOPIC} topic (topics: {listed})")
-        if topic.type != LOG_TYPE or topic.serialization_format != "cdr":
-            raise SourceError(
-                f"{bag.path}: {LOG_TOPIC} has type {topic.type or '(none)'!r} "
-                f"({topic.serialization_format}); expected {LOG_TYPE} (cdr)"
-            )
-        for message in bag.messages({LOG_TOPIC, XML_TOPIC}):
-            if message.topic == XML_TOPIC:
-                if message.type == XML_TYPE:
-                    log.tree_xml = str(getattr(message.decoded, "data", "")).encode()
-                continue
-            log.messages += 1
-            where = f"{bag.path}: message {log.messages}"
-            log.entries.extend(_entries(message.decoded, log.messages, where))
-        log.warnings.extend(bag.warnings)
-        log.layout = bag.used[LOG_TOPIC].origin if LOG_TOPIC in bag.used else ""
-        log.files = list(bag.files)
-    if not log.entries:
-        raise SourceError(f"{log.file}: {LOG_TOPIC} holds no status changes")
+def _check_topic(bag: Bag) -> None:
+    topic = bag.topics.get(LOG_TOPIC)
+    if topic is None:
+        listed = ", ".join(sorted(bag.topics)) or "none"
+        raise SourceError(f"{bag.path}: no {LOG_TOPIC} topic (topics: {listed})")
+    if topic.type != LOG_TYPE or topic.serialization_format != "cdr":
+        raise SourceError(
+            f"{bag.path}: {LOG_TOPIC} has type {topic.type or '(none)'!r} "
+            f"({topic.serialization_format}); expected {LOG_TYPE} (cdr)"
+        )
+
+
+def _read_xml(bag: Bag) -> bytes | None:
+    """The bag's last tree XML message, if any (a pass over that topic only)."""
+    xml = None
+    for message in bag.messages({XML_TOPIC}):
+        if message.type == XML_TYPE:
+            xml = str(getattr(message.decoded, "data", "")).encode()
+    return xml
+
+
+def _scan(bag: Bag, splitter: GoalSplitter | None) -> BagLog:
+    """The first pass: decode every entry of ``/behavior_tree_log`` (and the tree XML),
+    keeping only counts, names and (uid, name) pairs, and feeding ``splitter`` the
+    entries as uids while every entry has one; what the bag's damage cost is in the
+    warnings."""
+    log = BagLog(bag.path)
+    pairs, names = log.pairs, log.names
+    for message in bag.messages({LOG_TOPIC, XML_TOPIC}):
+        if message.topic == XML_TOPIC:
+            if message.type == XML_TYPE:
+                log.tree_xml = str(getattr(message.decoded, "data", "")).encode()
+            continue
+        log.messages += 1
+        where = f"{bag.path}: message {log.messages}"
+        for entry in _entries(message.decoded, log.messages, where):
+            log.entries += 1
+            names[entry.name] = None
+            if pairs is not None:
+                if entry.uid is None:
+                    pairs = log.pairs = None
+                    splitter = None
+                    continue
+                pairs[(entry.uid, entry.name)] = None
+                if splitter is not None:
+                    splitter.add(entry.t_ns, entry.uid, entry.prev, entry.status)
+    log.layout = bag.used[LOG_TOPIC].origin if LOG_TOPIC in bag.used else ""
+    log.files = list(bag.files)
     return log
+
+
+def _log_entries(bag: Bag) -> Iterator[LogEntry]:
+    """The entries of ``/behavior_tree_log``, decoded anew (a further pass)."""
+    for number, message in enumerate(bag.messages({LOG_TOPIC}), 1):
+        yield from _entries(message.decoded, number, f"{bag.path}: message {number}")
 
 
 def _entries(decoded: object, number: int, where: str) -> Iterator[LogEntry]:
@@ -167,58 +243,63 @@ def _entries(decoded: object, number: int, where: str) -> Iterator[LogEntry]:
         )
 
 
-def bag_tree(log: BagLog, tree_file: str | os.PathLike | None, registry: Registry | None) -> Tree:
+def bag_tree(
+    file: str,
+    tree_xml: bytes | None,
+    tree_file: str | os.PathLike | None,
+    registry: Registry | None,
+) -> Tree:
     """The tree of the run: ``tree_file`` (checked against the bag's XML when it has
     one), else the bag's own tree XML."""
-    if log.tree_xml is not None:
-        own = tree_from_log_xml(log.tree_xml, f"{log.file} ({XML_TOPIC})", registry)
+    if tree_xml is not None:
+        own = tree_from_log_xml(tree_xml, f"{file} ({XML_TOPIC})", registry)
         return own if tree_file is None else tree_from_file(tree_file, own, registry)
     if tree_file is None:
-        raise SourceError(f"{log.file}: the bag holds no tree; give the tree file with --tree")
+        raise SourceError(f"{file}: the bag holds no tree; give the tree file with --tree")
     try:
         return load_tree(tree_file, registry, accept_unknown=True)
     except TreeError as error:
         raise SourceError(str(error)) from None
 
 
-def match_uids(entries: list[LogEntry], tree: Tree, where: str) -> tuple[list[int], str]:
-    """The tree uid of every entry and how they were matched ("uid" or "name")."""
-    if all(e.uid is not None for e in entries):
-        for entry in {(e.uid, e.name): e for e in entries}.values():
-            node = tree.nodes.get(entry.uid or 0)
-            # BT.CPP names a nameless node by its ID (btlog's description); '' is older
-            if node is None or entry.name not in logged_names(node) | {node.name}:
-                there = "no such node" if node is None else f"it is {node.name!r}"
-                raise SourceError(
-                    f"{where}: the log's node {entry.name!r} has uid {entry.uid}, but in the "
-                    f"tree {there}; --tree is not the tree that ran"
-                )
-        return [e.uid or 0 for e in entries], "uid"
-    named = [Entry(e.name, e.prev, e.status, e.message) for e in entries]
-    return match_names(named, tree, where), "name"
+def check_uids(pairs: Iterable[tuple[int, str]], tree: Tree, where: str) -> None:
+    """``SourceError`` for the first (uid, name) of the log the tree's node of that uid
+    does not have."""
+    for uid, name in pairs:
+        node = tree.nodes.get(uid)
+        # BT.CPP names a nameless node by its ID (btlog's description); '' is older
+        if node is None or name not in logged_names(node) | {node.name}:
+            there = "no such node" if node is None else f"it is {node.name!r}"
+            raise SourceError(
+                f"{where}: the log's node {name!r} has uid {uid}, but in the "
+                f"tree {there}; --tree is not the tree that ran"
+            )
 
 
-def split_goals(entries: list[LogEntry], uids: list[int], root: int) -> list[Goal]:
-    """One Goal per run of the tree: a goal starts when the root leaves IDLE after the
-    previous goal's result, or while the log still has it running (that goal's end is
-    missing). A root leaving IDLE within a goal (Nav2's RecoveryNode halts itself before
-    it returns its result) does not start one. Entries before the first start form a goal
-    of their own: the bag began during it."""
-    goals: list[Goal] = []
-    root_status: Status = IDLE
-    for entry, uid in zip(entries, uids, strict=True):
-        if uid == root and entry.status is not IDLE and entry.prev is IDLE:
-            if not goals or goals[-1].complete or root_status is not IDLE:
-                goals.append(Goal(len(goals) + 1))
-        elif not goals:
-            goals.append(Goal(1))
-        goal = goals[-1]
-        goal.entries.append((entry, uid))
-        if uid == root:
-            root_status = entry.status
-            if entry.status in (SUCCESS, FAILURE):
-                goal.complete = True
-    return goals
+#: How a pass gives each entry its uid: by the entry's own uid (None), by name (each
+#: unique in the tree: the name's nodes), or ``match_names``' uid of each entry in order.
+Uids = dict[str, list[int]] | array | None
+
+
+def _name_uids(bag: Bag, log: BagLog, tree: Tree) -> Uids:
+    """How a name-only log's entries map to the tree: by name when each is unique in the
+    tree; else by ``match_names`` over every entry, held for it (as ``Entry``s)."""
+    groups = name_groups(tree)
+    check_names(log.names, groups, log.file)
+    if all(len(groups[name]) == 1 for name in log.names):
+        return groups
+    named = [Entry(e.name, e.prev, e.status, e.message) for e in _log_entries(bag)]
+    return array("q", match_names(named, tree, log.file))
+
+
+def _with_uids(bag: Bag, uids: Uids) -> Iterator[tuple[LogEntry, int]]:
+    """A pass over the log's entries, each with its uid in the tree."""
+    entries = _log_entries(bag)
+    if uids is None:
+        return ((e, e.uid or 0) for e in entries)
+    if isinstance(uids, dict):
+        return ((e, uids[e.name][0]) for e in entries)
+    return zip(entries, uids, strict=False)
 
 
 def import_bag(
@@ -230,47 +311,84 @@ def import_bag(
     tick_gap_ns: int = DEFAULT_TICK_GAP_NS,
 ) -> list[BuildResult]:
     """Import every goal of the bag (or goal number ``goal``) as recordings: ``output``
-    for one goal, else ``OUT-goalN.mcap`` beside it."""
-    log = read_bag(path)
-    tree = bag_tree(log, tree_file, registry)
-    uids, matched_by = match_uids(log.entries, tree, log.file)
-    goals = split_goals(log.entries, uids, tree.root.uid)
-    if goal is not None:
-        if not 1 <= goal <= len(goals):
-            raise SourceError(f"{log.file}: --goal {goal}: the bag has {len(goals)} goals")
-        chosen = [goals[goal - 1]]
-    else:
-        chosen = goals
-    output = Path(output)
-    attachments = []
-    if tree_file is not None:
-        attachments.append((Path(tree_file).name, Path(tree_file).read_bytes()))
-    elif log.tree_xml is not None:
-        attachments.append(("nav2-tree.xml", log.tree_xml))
-    results = []
-    for item in chosen:
-        target = (
-            output
-            if len(chosen) == 1
-            else output.with_name(f"{output.stem}-goal{item.index}{output.suffix or '.mcap'}")
-        )
-        source = Source.of_file(
-            FORMAT,
-            log.file,
-            log.files,
-            topic=LOG_TOPIC,
-            messages=log.messages,
-            definition=log.layout,
-            matched_by=matched_by,
-            goal=item.index,
-            goals=len(goals),
-        )
-        results.append(_build(item, tree, source, target, attachments, tick_gap_ns, log.warnings))
-    return results
+    for one goal, else ``OUT-goalN.mcap`` beside it. The bag is read in passes (its tree
+    XML, then the log to check it and split the goals, then each goal's entries into its
+    recording), so memory does not grow with the log."""
+    with open_bag(path) as bag:
+        _check_topic(bag)
+        opened = len(bag.warnings)
+        tree: Tree | None = None
+        tree_error: SourceError | None = None
+        try:
+            tree = bag_tree(bag.path, _read_xml(bag), tree_file, registry)
+        except SourceError as error:  # raised after the log's own faults, as it reads
+            tree_error = error
+        mark = len(bag.warnings)
+        splitter = GoalSplitter(tree.root.uid) if tree is not None else None
+        log = _scan(bag, splitter)
+        log.warnings = bag.warnings[:opened] + bag.warnings[mark:]
+        if not log.entries:
+            raise SourceError(f"{log.file}: {LOG_TOPIC} holds no status changes")
+        if tree_error is not None or tree is None:
+            raise tree_error or SourceError(f"{log.file}: the tree could not be read")
+        uids: Uids = None
+        matched_by = "uid"
+        if log.pairs is not None:
+            check_uids(log.pairs, tree, log.file)
+        else:
+            matched_by = "name"
+            uids = _name_uids(bag, log, tree)
+            splitter = GoalSplitter(tree.root.uid)
+            for entry, uid in _with_uids(bag, uids):
+                splitter.add(entry.t_ns, uid, entry.prev, entry.status)
+        assert splitter is not None
+        goals = splitter.goals
+        if goal is not None:
+            if not 1 <= goal <= len(goals):
+                raise SourceError(f"{log.file}: --goal {goal}: the bag has {len(goals)} goals")
+            chosen = [goals[goal - 1]]
+        else:
+            chosen = goals
+        output = Path(output)
+        attachments = []
+        if tree_file is not None:
+            attachments.append((Path(tree_file).name, Path(tree_file).read_bytes()))
+        elif log.tree_xml is not None:
+            attachments.append(("nav2-tree.xml", log.tree_xml))
+        results = []
+        entries = _with_uids(bag, uids)
+        for item in goals:
+            if item.index > chosen[-1].index:
+                break
+            part = itertools.islice(entries, item.count)
+            if item not in chosen:
+                collections.deque(part, maxlen=0)
+                continue
+            target = (
+                output
+                if len(chosen) == 1
+                else output.with_name(f"{output.stem}-goal{item.index}{output.suffix or '.mcap'}")
+            )
+            source = Source.of_file(
+                FORMAT,
+                log.file,
+                log.files,
+                topic=LOG_TOPIC,
+                messages=log.messages,
+                definition=log.layout,
+                matched_by=matched_by,
+                goal=item.index,
+                goals=len(goals),
+            )
+            results.append(
+                _build(item, part, tree, source, target, attachments, tick_gap_ns, log.warnings)
+            )
+        return results
 
 
 def _build(
     goal: Goal,
+    entries: Iterable[tuple[LogEntry, int]],
     tree: Tree,
     source: Source,
     output: Path,
@@ -278,10 +396,8 @@ def _build(
     tick_gap_ns: int,
     warnings: list[str],
 ) -> BuildResult:
-    start = goal.entries[0][0].t_ns
-    first: dict[int, Status] = {}
-    for entry, uid in goal.entries:
-        first.setdefault(uid, entry.prev)
+    start = goal.start_ns
+    first = goal.first
     began = state_at_first_entry(tree, first)
     unnamed = never_named(tree, first, began)
     # a log that begins mid-run infers the never-named ancestors too (MID_RUN says so)
@@ -289,7 +405,7 @@ def _build(
     metadata = {} if goal.complete else {"incomplete": INCOMPLETE}
     if began:
         metadata["mid_run"] = mid_run
-    omitted = omitted_changes(((u, e.prev, e.status) for e, u in goal.entries), began)
+    omitted = goal.omitted.count
     if omitted:
         metadata["omitted"] = f"{omitted} {OMITTED}"
     notes: list[str] = []
@@ -307,7 +423,7 @@ def _build(
         if began:
             count = builder.begin_mid_run(began)
             builder.warnings.append(f"goal {goal.index}: {mid_run} ({count} nodes not IDLE)")
-        for entry, uid in goal.entries:
+        for entry, uid in entries:
             builder.logged(entry.t_ns - start, uid, entry.prev, entry.status)
     except BaseException:
         builder.close()
