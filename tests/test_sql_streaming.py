@@ -51,5 +51,6 @@ def test_a_result_of_millions_of_rows_is_printed_in_bounded_memory(run, tmp_path
         _pid, status, usage = os.wait4(child.pid, 0)
         assert status == 0
         assert out.seek(0, os.SEEK_END) > 3_000_000 * 4
-    # read whole, the 3M rows took ~600 MB as Python tuples; streamed, ~100 MB
-    assert usage.ru_maxrss * 1024 < 300_000_000, usage.ru_maxrss
+    # read whole, the 3M rows took 1.2 GB; streamed, ~110 MB alone and up to ~330 MB
+    # with the suite's other workers running (DuckDB's and the allocator's threads)
+    assert usage.ru_maxrss * 1024 < 500_000_000, usage.ru_maxrss
