@@ -26,6 +26,7 @@ import pytest
 
 from btlog.algorithms.sequence_diff import compare
 from btlog.checks.behaviours import diff_paths, executed_actions, nominal_actions
+from btlog.explain import divergence
 from btlog.explain.divergence import (
     ExecutedAction,
     actions_from_events,
@@ -255,3 +256,24 @@ def test_the_common_prefix_walked_first_gives_the_alignment_of_the_whole():
         assert rows == expected
         assert found.lcs == whole.lcs and found.lcs_length == whole.lcs_length
         assert found.edit_distance == whole.edit_distance
+
+
+def test_past_the_limit_only_a_window_after_the_first_divergence_is_aligned(monkeypatch):
+    """When what follows the common prefix is longer than ``ALIGNED_LIMIT`` actions, only
+    ``WINDOW`` actions of each side past the first divergence are aligned, and the
+    report says how many of each side were not compared."""
+    monkeypatch.setattr(divergence, "ALIGNED_LIMIT", 40)
+    monkeypatch.setattr(divergence, "WINDOW", 10)
+    a = [_action(name, i) for i, name in enumerate("abcde" + "xy" * 30)]
+    b = [_action(name, i) for i, name in enumerate("abcde" + "yx" * 25)]
+    found = compare_subgoal("s", a, b)
+    assert found.prefix == 5 and found.cut == divergence.Cut(65 - 15, 55 - 15)
+    assert [r.a_index for r in found.rows if r.a is not None] == list(range(15))
+    assert [r.b_index for r in found.rows if r.b is not None] == list(range(15))
+    assert found.edit_distance == 2 and found.diverges
+    text = render(diverge(a, b))
+    assert "compared 10 actions of each side past the first divergence" in text
+    assert "the next 50 of A and 40 of B are not compared" in text
+    assert to_json(diverge(a, b))["subgoals"][0]["cut"] == {"window": 10, "a": 50, "b": 40}
+    short = compare_subgoal("s", a[:20], b[:20])  # within the limit: aligned whole
+    assert short.cut is None and len([r for r in short.rows if r.a]) == 20

@@ -23,6 +23,7 @@ __all__ = [
     "AlignedPair",
     "Alignment",
     "Comparison",
+    "TooCostly",
     "compare",
     "edit_distance",
 ]
@@ -107,11 +108,17 @@ class Comparison:
 _Node = tuple[Any, int, int, int]
 
 
-def _onp(a: Sequence[Hashable], b: Sequence[Hashable]) -> tuple[int, _Node]:
+class TooCostly(Exception):
+    """The O(NP) search would keep more path nodes than the ``budget`` given to it."""
+
+
+def _onp(
+    a: Sequence[Hashable], b: Sequence[Hashable], budget: int | None = None
+) -> tuple[int, _Node]:
     """Run the O(NP) search on ``a`` (length M) and ``b`` (length N), requiring M <= N.
 
     Returns the edit distance and the last node of the linked path that reaches
-    ``(M, N)``.
+    ``(M, N)``; raises ``TooCostly`` before keeping more than ``budget`` path nodes.
     """
     m, n = len(a), len(b)
     assert m <= n
@@ -139,8 +146,12 @@ def _onp(a: Sequence[Hashable], b: Sequence[Hashable]) -> tuple[int, _Node]:
         nodes[i] = (parent, x0, y0, y - y0)
 
     p = -1
+    kept = 0
     while fp[delta + offset] != n:
         p += 1
+        kept += delta + 2 * p + 1
+        if budget is not None and kept > budget:
+            raise TooCostly(f"more than {budget} path nodes")
         for k in range(-p, delta):
             advance(k)
         for k in range(delta + p, delta, -1):
@@ -195,20 +206,21 @@ def _order_gaps(
     return ordered
 
 
-def compare(a: Sequence[Hashable], b: Sequence[Hashable]) -> Comparison:
+def compare(a: Sequence[Hashable], b: Sequence[Hashable], budget: int | None = None) -> Comparison:
     """Compare sequences ``a`` and ``b`` with the O(NP) algorithm.
 
     Returns a :class:`Comparison` with the insert/delete edit distance, one longest
     common subsequence and the corresponding optimal alignment ("delete" = only in
     ``a``, "insert" = only in ``b``). Runs in ``O((len(a) + len(b)) * P)`` time, where
     ``P`` is the number of deletions (of the shorter-to-longer script), and keeps
-    ``O((P + 1) * (|len(a) - len(b)| + P + 1))`` path nodes in memory.
+    ``O((P + 1) * (|len(a) - len(b)| + P + 1))`` path nodes in memory: ``TooCostly``
+    is raised before more than ``budget`` of them are kept.
     """
     a = a if isinstance(a, Sequence) else list(a)
     b = b if isinstance(b, Sequence) else list(b)
     swapped = len(a) > len(b)
     short, long_ = (b, a) if swapped else (a, b)
-    distance, last = _onp(short, long_)
+    distance, last = _onp(short, long_, budget)
     steps = _raw_ops(last)
     if swapped:  # x indexed the original b, y the original a: swap roles back
         flip: dict[Op, Op] = {"equal": "equal", "delete": "insert", "insert": "delete"}

@@ -137,6 +137,8 @@ def subgoal_check(found: SubgoalDivergence) -> CheckResult:
         parts.append("only in the recording: " + ", ".join(only_a))
     if only_b:
         parts.append("only in the re-run: " + ", ".join(only_b))
+    if found.cut is not None:
+        parts.append(found.cut.text())
     return CheckResult(False, what, expected, "; ".join(parts))
 
 

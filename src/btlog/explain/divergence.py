@@ -19,7 +19,7 @@ from collections.abc import Iterable, Iterator, Mapping, Sequence
 from dataclasses import dataclass, replace
 from typing import overload
 
-from btlog.algorithms.sequence_diff import Comparison, compare
+from btlog.algorithms.sequence_diff import Comparison, TooCostly, compare
 from btlog.events import StatusChange, TreeMutation
 from btlog.explain.hierarchy import subgoal_of
 from btlog.state import StateProjection
@@ -28,6 +28,7 @@ from btlog.tree.model import Node, Tree
 
 __all__ = [
     "ActionList",
+    "Cut",
     "Divergence",
     "ExecutedAction",
     "Move",
@@ -231,6 +232,35 @@ class Move:
         return {"action": self.action, "direction": self.direction, "past": list(self.past)}
 
 
+#: At most this many actions (both sides) after a subgoal's first divergence are aligned
+#: whole, and the O(NP) search keeps at most this many path nodes (about 90 bytes each).
+ALIGNED_LIMIT = 2_000_000
+#: Past ``ALIGNED_LIMIT``, only this many actions of each side after the first divergence
+#: are aligned (at most about 3 million path nodes whatever they are).
+WINDOW = 1000
+
+
+@dataclass(frozen=True)
+class Cut:
+    """What a subgoal's comparison left out: the last ``a`` actions of A and ``b`` of B,
+    past the ``WINDOW`` aligned after the first divergence (see ``compare_subgoal``)."""
+
+    a: int
+    b: int
+
+    def to_json(self) -> dict:
+        """JSON-ready form (with the window)."""
+        return {"window": WINDOW, "a": self.a, "b": self.b}
+
+    def text(self) -> str:
+        """E.g. ``compared 1000 actions of each side past the first divergence; the next
+        5 of A and 7 of B are not compared``."""
+        return (
+            f"compared {WINDOW} actions of each side past the first divergence; the next "
+            f"{self.a} of A and {self.b} of B are not compared"
+        )
+
+
 @dataclass(frozen=True)
 class SubgoalDivergence:
     """The comparison of one subgoal's actions in behaviours A and B."""
@@ -242,6 +272,8 @@ class SubgoalDivergence:
     comparison: Comparison
     #: how many first actions both sides share (equal rows, not held by ``comparison``)
     prefix: int = 0
+    #: the actions left out of the alignment when what follows the prefix was too long
+    cut: Cut | None = None
 
     @property
     def rows(self) -> Rows:
@@ -324,6 +356,7 @@ class SubgoalDivergence:
             "divergent": listed,
             "moved": [m.to_json() for m in self.moves],
             "rows": [row.to_json() for row in self.rows],
+            **({} if self.cut is None else {"cut": self.cut.to_json()}),
         }
 
 
@@ -438,11 +471,20 @@ def compare_subgoal(
     prefix, shortest = 0, min(len(left), len(right))
     while prefix < shortest and left[prefix] == right[prefix]:
         prefix += 1
-    comparison = compare(left[prefix:], right[prefix:])
+    rest_a, rest_b = len(left) - prefix, len(right) - prefix
+    cut = None
+    try:
+        if rest_a + rest_b > ALIGNED_LIMIT:
+            raise TooCostly(f"more than {ALIGNED_LIMIT} actions after the first divergence")
+        comparison = compare(left[prefix:], right[prefix:], budget=ALIGNED_LIMIT)
+    except TooCostly:
+        end_a, end_b = prefix + min(rest_a, WINDOW), prefix + min(rest_b, WINDOW)
+        comparison = compare(left[prefix:end_a], right[prefix:end_b])
+        cut = Cut(len(left) - end_a, len(right) - end_b)
     del left, right
     keep_a = a if isinstance(a, ActionList) else tuple(a)
     keep_b = b if isinstance(b, ActionList) else tuple(b)
-    return SubgoalDivergence(subgoal, keep_a, keep_b, comparison, prefix)
+    return SubgoalDivergence(subgoal, keep_a, keep_b, comparison, prefix, cut)
 
 
 def diverge(

@@ -38,6 +38,8 @@ def subgoal_header(found: SubgoalDivergence) -> str:
     )
     if found.moves:
         line += "; " + "; ".join(move_text(move) for move in found.moves)
+    if found.cut is not None:
+        line += "; " + found.cut.text()
     return line
 
 
