@@ -101,7 +101,7 @@ MARGIN = 2
 MAX_READINGS = 1024
 
 
-@dataclass(frozen=True)
+@dataclass(frozen=True, slots=True)
 class Entry:
     """What a name-only log says: a node's name, its previous and new status, and the
     tick (or message) it came in, ``group``."""
