@@ -32,6 +32,7 @@ from btlog.explain.divergence import (
     actions_from_events,
     compare_subgoal,
     diverge,
+    iter_json,
     to_json,
 )
 from btlog.record.reader import open_recording, stream_events
@@ -277,3 +278,17 @@ def test_past_the_limit_only_a_window_after_the_first_divergence_is_aligned(monk
     assert to_json(diverge(a, b))["subgoals"][0]["cut"] == {"window": 10, "a": 50, "b": 40}
     short = compare_subgoal("s", a[:20], b[:20])  # within the limit: aligned whole
     assert short.cut is None and len([r for r in short.rows if r.a]) == 20
+
+
+def test_json_written_in_pieces_is_the_json_of_the_whole(taxi_runs):
+    """``iter_json`` (what ``btlog diff --json`` prints) is ``json.dumps(to_json(...),
+    indent=2)`` exactly: on the Taxi runs, on random pairs, with subgoals on one side."""
+    cases = [diff_paths(taxi_runs["optimal"], taxi_runs["human"])]
+    generator = random.Random(3)
+    for _ in range(200):
+        a = [_action(generator.choice("xy"), i, generator.choice("st")) for i in range(5)]
+        b = [_action(generator.choice("xyz"), i, generator.choice("su")) for i in range(4)]
+        cases.append(diverge(a, b))
+    cases.append(diverge([], []))
+    for found in cases:
+        assert "".join(iter_json(found)) == json.dumps(to_json(found), indent=2)

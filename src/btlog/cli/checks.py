@@ -23,7 +23,7 @@ from btlog.checks.expectations import Expectations, check_run, load_expectations
 from btlog.checks.rerun import RerunReport, rerun
 from btlog.checks.stored_run import CheckResult
 from btlog.errors import EXIT_CHECK_FAILED, EXIT_OK
-from btlog.explain.divergence import to_json
+from btlog.explain.divergence import iter_json
 from btlog.render.divergence import iter_lines
 from btlog.render.escape import safe
 from btlog.render.terminal import make_console
@@ -44,7 +44,9 @@ def diff(args: Namespace) -> int:
     divergence = diff_paths(args.a, args.b, args.main_tree, args.trees)
     verdict = EXIT_OK if divergence.identical else EXIT_CHECK_FAILED
     if args.json:
-        print(json.dumps(to_json(divergence), indent=2))
+        for piece in iter_json(divergence):
+            sys.stdout.write(piece)
+        sys.stdout.write("\n")
         return verdict
     console = make_console(args.plain)
     for text, kind in iter_lines(divergence):

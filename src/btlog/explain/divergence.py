@@ -14,10 +14,11 @@ See docs/design.md, "Divergence".
 
 from __future__ import annotations
 
+import json
 from array import array
 from collections.abc import Iterable, Iterator, Mapping, Sequence
 from dataclasses import dataclass, replace
-from typing import overload
+from typing import Any, overload
 
 from btlog.algorithms.sequence_diff import Comparison, TooCostly, compare
 from btlog.events import StatusChange, TreeMutation
@@ -38,6 +39,7 @@ __all__ = [
     "actions_from_events",
     "compare_subgoal",
     "diverge",
+    "iter_json",
     "to_json",
 ]
 
@@ -342,20 +344,21 @@ class SubgoalDivergence:
         """Descriptions of the moved actions (see ``moves``)."""
         return list(dict.fromkeys(move.action for move in self.moves))
 
-    def to_json(self) -> dict:
-        """JSON-ready form."""
+    def to_json(self, streamed: bool = False) -> dict:
+        """JSON-ready form; ``streamed`` leaves placeholders for ``lcs`` and ``rows``
+        (``iter_json`` writes them one at a time)."""
         listed = [_divergent_json(row) for row in self.rows if row.op == "only_a"]
         listed += [_divergent_json(row) for row in self.rows if row.op == "only_b"]
         return {
             "subgoal": self.subgoal,
             "edit_distance": self.edit_distance,
-            "lcs": list(self.lcs),
+            "lcs": _placeholder("lcs") if streamed else list(self.lcs),
             "lcs_length": self.lcs_length,
             "a_count": len(self.a_actions),
             "b_count": len(self.b_actions),
             "divergent": listed,
             "moved": [m.to_json() for m in self.moves],
-            "rows": [row.to_json() for row in self.rows],
+            "rows": _placeholder("rows") if streamed else [row.to_json() for row in self.rows],
             **({} if self.cut is None else {"cut": self.cut.to_json()}),
         }
 
@@ -506,12 +509,55 @@ def diverge(
     return Divergence(a_label, b_label, subgoals)
 
 
-def to_json(divergence: Divergence) -> dict:
-    """The divergence as a JSON-ready dict (``btlog diff --json``)."""
+def to_json(divergence: Divergence, streamed: bool = False) -> dict:
+    """The divergence as a JSON-ready dict (``btlog diff --json``; ``streamed``: see
+    ``iter_json``)."""
     return {
         "a": divergence.a_label,
         "b": divergence.b_label,
         "edit_distance": divergence.edit_distance,
         "identical": divergence.identical,
-        "subgoals": [s.to_json() for s in divergence.subgoals],
+        "subgoals": [s.to_json(streamed) for s in divergence.subgoals],
     }
+
+
+def _placeholder(name: str) -> str:
+    return f"\0{name}\0"
+
+
+#: Where a streamed list stands in ``json.dumps(..., indent=2)`` of ``to_json``: inside a
+#: subgoal (depth 3), its items at depth 4.
+_ITEM_INDENT = " " * 8
+
+
+def _json_list(items: Iterator[Any]) -> Iterator[str]:
+    """A list as ``json.dumps(indent=2)`` writes it at a subgoal's key, item by item."""
+    first = True
+    for item in items:
+        text = json.dumps(item, indent=2).replace("\n", "\n" + _ITEM_INDENT)
+        yield ("[\n" if first else ",\n") + _ITEM_INDENT + text
+        first = False
+    yield "[]" if first else "\n" + _ITEM_INDENT[:-2] + "]"
+
+
+def _lcs_items(found: SubgoalDivergence) -> Iterator[str]:
+    """``found.lcs`` one description at a time."""
+    yield from (found.a_actions[i].description for i in range(found.prefix))
+    yield from found.comparison.lcs
+
+
+def iter_json(divergence: Divergence) -> Iterator[str]:
+    """The text of ``json.dumps(to_json(divergence), indent=2)`` in pieces: the LCS and the
+    rows of each subgoal are written one at a time (a day-long run's are never held)."""
+    text = json.dumps(to_json(divergence, streamed=True), indent=2)
+    pieces = text.split('"' + json.dumps(_placeholder("lcs"))[1:-1] + '"')
+    lists = [_lcs_items(found) for found in divergence.subgoals]
+    rows_token = '"' + json.dumps(_placeholder("rows"))[1:-1] + '"'
+    for index, piece in enumerate(pieces):
+        parts = piece.split(rows_token)
+        for other, part in enumerate(parts):
+            yield part
+            if other < len(parts) - 1:
+                yield from _json_list(row.to_json() for row in divergence.subgoals[index - 1].rows)
+        if index < len(lists):
+            yield from _json_list(lists[index])
