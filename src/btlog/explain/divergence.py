@@ -15,6 +15,7 @@ See docs/design.md, "Divergence".
 from __future__ import annotations
 
 import json
+import re
 from array import array
 from collections.abc import Iterable, Iterator, Mapping, Sequence
 from dataclasses import dataclass, replace
@@ -347,8 +348,7 @@ class SubgoalDivergence:
     def to_json(self, streamed: bool = False) -> dict:
         """JSON-ready form; ``streamed`` leaves placeholders for ``lcs`` and ``rows``
         (``iter_json`` writes them one at a time)."""
-        listed = [_divergent_json(row) for row in self.rows if row.op == "only_a"]
-        listed += [_divergent_json(row) for row in self.rows if row.op == "only_b"]
+        listed = [] if streamed else list(_divergent_items(self))
         return {
             "subgoal": self.subgoal,
             "edit_distance": self.edit_distance,
@@ -356,11 +356,17 @@ class SubgoalDivergence:
             "lcs_length": self.lcs_length,
             "a_count": len(self.a_actions),
             "b_count": len(self.b_actions),
-            "divergent": listed,
+            "divergent": _placeholder("divergent") if streamed else listed,
             "moved": [m.to_json() for m in self.moves],
             "rows": _placeholder("rows") if streamed else [row.to_json() for row in self.rows],
             **({} if self.cut is None else {"cut": self.cut.to_json()}),
         }
+
+
+def _divergent_items(found: SubgoalDivergence) -> Iterator[dict]:
+    """The divergent actions of ``found`` as JSON: A's, then B's."""
+    yield from (_divergent_json(row) for row in found.rows if row.op == "only_a")
+    yield from (_divergent_json(row) for row in found.rows if row.op == "only_b")
 
 
 def _divergent_json(row: Row) -> dict:
@@ -547,17 +553,19 @@ def _lcs_items(found: SubgoalDivergence) -> Iterator[str]:
 
 
 def iter_json(divergence: Divergence) -> Iterator[str]:
-    """The text of ``json.dumps(to_json(divergence), indent=2)`` in pieces: the LCS and the
-    rows of each subgoal are written one at a time (a day-long run's are never held)."""
+    """The text of ``json.dumps(to_json(divergence), indent=2)`` in pieces: the LCS, the
+    divergent actions and the rows of each subgoal are written one at a time (a day-long
+    run's are never held)."""
     text = json.dumps(to_json(divergence, streamed=True), indent=2)
-    pieces = text.split('"' + json.dumps(_placeholder("lcs"))[1:-1] + '"')
-    lists = [_lcs_items(found) for found in divergence.subgoals]
-    rows_token = '"' + json.dumps(_placeholder("rows"))[1:-1] + '"'
-    for index, piece in enumerate(pieces):
-        parts = piece.split(rows_token)
-        for other, part in enumerate(parts):
-            yield part
-            if other < len(parts) - 1:
-                yield from _json_list(row.to_json() for row in divergence.subgoals[index - 1].rows)
-        if index < len(lists):
-            yield from _json_list(lists[index])
+    lists = {
+        "lcs": iter([_lcs_items(found) for found in divergence.subgoals]),
+        "divergent": iter([_divergent_items(found) for found in divergence.subgoals]),
+        "rows": iter([(row.to_json() for row in found.rows) for found in divergence.subgoals]),
+    }
+    tokens = {json.dumps(_placeholder(name)): name for name in lists}
+    pattern = "(" + "|".join(re.escape(token) for token in tokens) + ")"
+    for index, piece in enumerate(re.split(pattern, text)):
+        if index % 2:
+            yield from _json_list(next(lists[tokens[piece]]))
+        else:
+            yield piece
