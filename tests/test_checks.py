@@ -18,13 +18,16 @@ from pathlib import Path
 import pytest
 import yaml
 
+from btlog.checks.behaviours import executed_actions
 from btlog.checks.expectations import (
     ExpectationError,
     check_run,
     load_expectations,
     record_expectations,
 )
-from btlog.checks.rerun import rerun, tree_for_rerun
+from btlog.checks.rerun import _read_run, rerun, run_extent, tree_for_rerun
+from btlog.checks.stored_run import final_status_of
+from btlog.record.reader import open_recording, stream_events
 from btlog.runner import RunConfig, execute
 from tests.cli_support import btlog as cli
 
@@ -98,6 +101,19 @@ def test_rerun_of_a_stored_kitting_run_passes(kitting_run):
         "go place screw",
     ]
     assert report.recorded_status == report.rerun_status == "SUCCESS"
+
+
+def test_a_run_streamed_for_a_rerun_reads_as_the_whole_file(kitting_run):
+    """``check --rerun`` reads each run front to back (its actions as arrays, its ticks
+    summarised): the final status, extent and actions of the whole read."""
+    streamed = _read_run(kitting_run)
+    assert stream_events(kitting_run) is not None  # the streamed path is the one taken
+    recording = open_recording(kitting_run)
+    assert streamed.final_status == final_status_of(recording) == "SUCCESS"
+    assert streamed.extent == run_extent(recording)
+    assert streamed.metadata == recording.metadata
+    assert list(streamed.actions) == list(executed_actions(recording))
+    assert len(streamed.actions) > 10
 
 
 def test_rerun_with_swapped_actions_fails_and_names_them(kitting_run, swapped_tree):

@@ -10,20 +10,30 @@ from __future__ import annotations
 import hashlib
 import os
 import tempfile
+from collections.abc import Iterator, Sequence
 from dataclasses import dataclass, replace
 from pathlib import Path
 
 from btlog.checks.behaviours import executed_actions
 from btlog.checks.stored_run import CheckResult, final_status_of
+from btlog.events import TickRecord
 from btlog.explain.divergence import (
     Divergence,
     ExecutedAction,
     SubgoalDivergence,
+    actions_from_events,
     diverge,
     to_json,
 )
-from btlog.record.reader import Recording, open_recording
+from btlog.record.reader import (
+    Recording,
+    UntidyRecording,
+    open_recording,
+    read_metadata,
+    stream_events,
+)
 from btlog.render.divergence import move_text, render
+from btlog.status import Status
 
 __all__ = ["RerunError", "RerunReport", "project_of", "rerun", "subgoal_check", "tree_for_rerun"]
 
@@ -150,6 +160,66 @@ def run_extent(recording: Recording) -> str:
     return f"{end / 1e9:.3f} s, {ticks} ticks, {len(recording.events)} events"
 
 
+@dataclass
+class _Ticks:
+    """What a run's tick records tell a re-run check, gathered as they stream by."""
+
+    last: tuple[int, bool] = (-1, False)
+    final_status: str = Status.IDLE.name
+    end_ns: int = 0
+    ticks: int = 0
+
+    def add(self, batch: list[TickRecord]) -> None:
+        """Take a batch of tick records (any order)."""
+        for tick in batch:
+            self.end_ns = max(self.end_ns, tick.end_ns)
+            self.ticks = max(self.ticks, tick.tick)
+            key = (tick.tick, tick.teardown)
+            if not tick.teardown and key >= self.last:
+                self.last, self.final_status = key, tick.root_status.name
+
+
+@dataclass
+class _Behaviour:
+    """A run as a re-run check reads it: metadata, final status, extent, actions."""
+
+    metadata: dict
+    final_status: str
+    extent: str
+    actions: Sequence[ExecutedAction]
+
+
+def _read_run(path: str | os.PathLike) -> _Behaviour:
+    """Read a run for ``rerun`` front to back, holding only its executed actions (as
+    arrays) and a summary of its ticks; an untidy file is read whole."""
+    ticks = _Ticks()
+    streamed = stream_events(path, ticks.add)
+    if streamed is not None:
+        count = 0
+        tree, events = streamed
+
+        def counted() -> Iterator[object]:
+            nonlocal count
+            for event in events:
+                count += 1
+                yield event
+
+        try:
+            actions = actions_from_events(tree, counted())
+        except UntidyRecording:
+            pass
+        else:
+            extent = f"{ticks.end_ns / 1e9:.3f} s, {ticks.ticks} ticks, {count} events"
+            return _Behaviour(read_metadata(path), ticks.final_status, extent, actions)
+    recording = open_recording(path)
+    return _Behaviour(
+        recording.metadata,
+        final_status_of(recording),
+        run_extent(recording),
+        executed_actions(recording),
+    )
+
+
 def rerun(
     run_path: str | os.PathLike,
     tree: str | os.PathLike | None = None,
@@ -168,7 +238,7 @@ def rerun(
     """
     from btlog.runner import RunConfig, execute
 
-    recorded = open_recording(run_path)
+    recorded = _read_run(run_path)
     tree_path = tree_for_rerun(run_path, recorded.metadata, tree)
     config = replace(RunConfig.from_metadata(recorded.metadata, tree=tree_path), realtime=False)
     if main_tree is not None:
@@ -177,11 +247,11 @@ def rerun(
         config.trees = trees
     with tempfile.TemporaryDirectory(prefix="btlog-rerun-") as folder:
         result = execute(config, keep if keep is not None else Path(folder) / "rerun.mcap")
-        again = open_recording(result.path)
-    recorded_status = final_status_of(recorded)
+        again = _read_run(result.path)
+    recorded_status = recorded.final_status
     divergence = diverge(
-        executed_actions(recorded),
-        executed_actions(again),
+        recorded.actions,
+        again.actions,
         f"{os.fspath(run_path)} (recorded)",
         f"{tree_path} (re-run)",
     )
@@ -194,7 +264,7 @@ def rerun(
         )
     ]
     if recorded.metadata.get("clock") != "wall":  # on the simulated clock, the same run
-        before, after = run_extent(recorded), run_extent(again)
+        before, after = recorded.extent, again.extent
         results.append(CheckResult(before == after, "duration, ticks and events", before, after))
     results += [subgoal_check(found) for found in divergence.subgoals]
     changed = _sha256(tree_path) != recorded.metadata.get("tree_sha256")

@@ -14,7 +14,7 @@ the file and the problem.
 from __future__ import annotations
 
 import os
-from collections.abc import Iterator
+from collections.abc import Callable, Iterator
 from dataclasses import dataclass, field
 from itertools import pairwise
 from operator import attrgetter
@@ -230,10 +230,13 @@ def open_recording(path: str | os.PathLike) -> Recording:
     return _assemble(name, contents, walk)
 
 
-def stream_events(path: str | os.PathLike) -> tuple[Tree, Iterator[Any]] | None:
+def stream_events(
+    path: str | os.PathLike, on_ticks: Callable[[list[TickRecord]], None] | None = None
+) -> tuple[Tree, Iterator[Any]] | None:
     """The tree and the events of a recording read front to back without holding them,
-    for consumers that fold the events once (``btlog diff``); None when the file is not
-    a tidy recording (no tree before the first event, seqs out of order, damaged bytes):
+    for consumers that fold the events once (``btlog diff``, ``check --rerun``); the tick
+    records are handed to ``on_ticks`` as they come. None when the file is not a tidy
+    recording (no tree before the first event, seqs out of order, damaged bytes):
     ``open_recording`` then reads it whole and reports what is wrong."""
     name = os.fspath(path)
     walk = Walk(name)
@@ -246,7 +249,7 @@ def stream_events(path: str | os.PathLike) -> tuple[Tree, Iterator[Any]] | None:
         if topic == fmt.TREE_TOPIC:
             tree = orjson.loads(message.data)
             break
-        if topic in (fmt.EVENTS_TOPIC, fmt.MUTATIONS_TOPIC):
+        if topic in (fmt.EVENTS_TOPIC, fmt.MUTATIONS_TOPIC, fmt.TICKS_TOPIC):
             return None
     if tree is None:
         return None
@@ -263,6 +266,8 @@ def stream_events(path: str | os.PathLike) -> tuple[Tree, Iterator[Any]] | None:
             elif topic == fmt.MUTATIONS_TOPIC:
                 batch = [fmt.decode_mutation(orjson.loads(message.data))]
             else:
+                if topic == fmt.TICKS_TOPIC and on_ticks is not None:
+                    on_ticks(fmt.decode_ticks(message.data))
                 continue
             for event in batch:
                 if event.seq != last + 1:
