@@ -292,3 +292,19 @@ def test_json_written_in_pieces_is_the_json_of_the_whole(taxi_runs):
     cases.append(diverge([], []))
     for found in cases:
         assert "".join(iter_json(found)) == json.dumps(to_json(found), indent=2)
+
+
+def test_the_limit_is_shared_by_the_subgoals(monkeypatch):
+    """What all the subgoals' alignments hold is bounded together: once the first has
+    used the limit, the next is aligned within the window only."""
+    monkeypatch.setattr(divergence, "ALIGNED_LIMIT", 40)
+    monkeypatch.setattr(divergence, "WINDOW", 10)
+    a = [_action(n, i, "s") for i, n in enumerate("xy" * 8)]
+    a += [_action(n, 100 + i, "t") for i, n in enumerate("xy" * 8)]
+    b = [_action(n, i, "s") for i, n in enumerate("yx" * 8)]
+    b += [_action(n, 100 + i, "t") for i, n in enumerate("yx" * 8)]
+    first, second = diverge(a, b).subgoals
+    assert first.cut is None and len(first.rows) == 17  # 16 + 16 - LCS 15
+    assert second.cut == divergence.Cut(6, 6)  # 40 - 17 left < 32
+    tiny = diverge(a[:3] + a[16:19], b[:3] + b[16:19])  # under the window: never cut
+    assert [s.cut for s in tiny.subgoals] == [None, None]

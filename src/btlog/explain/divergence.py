@@ -471,11 +471,16 @@ def _descriptions(actions: Sequence[ExecutedAction]) -> list[str]:
 
 
 def compare_subgoal(
-    subgoal: str, a: Sequence[ExecutedAction], b: Sequence[ExecutedAction]
+    subgoal: str,
+    a: Sequence[ExecutedAction],
+    b: Sequence[ExecutedAction],
+    limit: int | None = None,
 ) -> SubgoalDivergence:
     """Compare one subgoal's actions of A and B by description: the common prefix is
     walked first (side by side, as equal rows: the O(NP) search would take the same
-    snake), then what follows is compared with the O(NP) algorithm."""
+    snake), then what follows is compared with the O(NP) algorithm — whole when at most
+    ``limit`` actions (``ALIGNED_LIMIT`` by default) follow and the search keeps at most
+    ``limit`` path nodes, else a ``WINDOW`` of each side (``cut`` says what is left)."""
     left, right = _descriptions(a), _descriptions(b)
     prefix, shortest = 0, min(len(left), len(right))
     while prefix < shortest and left[prefix] == right[prefix]:
@@ -483,13 +488,15 @@ def compare_subgoal(
     rest_a, rest_b = len(left) - prefix, len(right) - prefix
     cut = None
     try:
-        if rest_a + rest_b > ALIGNED_LIMIT:
-            raise TooCostly(f"more than {ALIGNED_LIMIT} actions after the first divergence")
-        comparison = compare(left[prefix:], right[prefix:], budget=ALIGNED_LIMIT)
+        limit = ALIGNED_LIMIT if limit is None else limit
+        if rest_a + rest_b > limit:
+            raise TooCostly(f"more than {limit} actions after the first divergence")
+        comparison = compare(left[prefix:], right[prefix:], budget=limit)
     except TooCostly:
         end_a, end_b = prefix + min(rest_a, WINDOW), prefix + min(rest_b, WINDOW)
         comparison = compare(left[prefix:end_a], right[prefix:end_b])
-        cut = Cut(len(left) - end_a, len(right) - end_b)
+        if end_a < len(left) or end_b < len(right):
+            cut = Cut(len(left) - end_a, len(right) - end_b)
     del left, right
     keep_a = a if isinstance(a, ActionList) else tuple(a)
     keep_b = b if isinstance(b, ActionList) else tuple(b)
@@ -509,10 +516,13 @@ def diverge(
     """
     groups_a, groups_b = _group(a_actions), _group(b_actions)
     names = list(dict.fromkeys([*groups_a, *groups_b]))
-    subgoals = tuple(
-        compare_subgoal(name, groups_a.get(name, []), groups_b.get(name, [])) for name in names
-    )
-    return Divergence(a_label, b_label, subgoals)
+    left = ALIGNED_LIMIT  # shared by the subgoals: what all their alignments may hold
+    subgoals = []
+    for name in names:
+        found = compare_subgoal(name, groups_a.get(name, []), groups_b.get(name, []), left)
+        left = max(0, left - len(found.comparison.alignment))
+        subgoals.append(found)
+    return Divergence(a_label, b_label, tuple(subgoals))
 
 
 def to_json(divergence: Divergence, streamed: bool = False) -> dict:
