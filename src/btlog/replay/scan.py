@@ -68,16 +68,6 @@ class Columns:
         self.count += count
         self.size += self._row_bytes * count
 
-    def add(self, buffer: bytes, message: columns.Message) -> None:
-        """Append the columns of ``message`` (located in ``buffer``)."""
-        view = memoryview(buffer)
-        spans = message.columns
-        for column, (start, end) in zip(self.parts, spans, strict=True):
-            column.append(view[start:end])
-        self.count += message.count
-        if spans:
-            self.size += spans[-1][1] - spans[0][0]  # the columns are contiguous
-
     def data(self) -> list[bytes]:
         """Each column's bytes, its parts joined (they are let go)."""
         joined = [b"".join(column) for column in self.parts]
@@ -168,51 +158,16 @@ class McapScan:
                 self._record(opcode, buffer, body, end)
 
     def _chunk(self, buffer: bytes) -> None:
-        """The records of an opened chunk. This loop runs once per message of the run, so
-        a binary events or ticks message is cut right here, inline (its head read, its
-        columns appended); any other record goes to ``_record``."""
-        head, message_head = HEAD.unpack_from, columns.HEAD.unpack_from
-        events, ticks = self.events_channel, self.ticks_channel
-        view, position, size = memoryview(buffer), 0, len(buffer)
-        batch = self.batch
-        status_columns, tick_columns = batch.status_columns, batch.tick_columns
+        """The records of an opened chunk, walked here without a generator step each (this
+        loop runs once per message of the run)."""
+        head, position, size = HEAD.unpack_from, 0, len(buffer)
         while position + HEAD.size <= size:
             opcode, length = head(buffer, position)
             body = position + HEAD.size
             end = position = body + length
             if end > size:
                 return
-            if opcode == _MESSAGE and end - body >= MESSAGE_HEAD + columns.HEAD.size:
-                channel = buffer[body : body + 2]
-                start = body + MESSAGE_HEAD
-                rows = start + columns.HEAD.size
-                magic, count, written, flags, _tick = message_head(buffer, start)
-                stop = rows + count * columns.EVENT_ROW_BYTES
-                cut = True
-                if channel == events and magic == columns.EVENTS_MAGIC and stop + written == end:
-                    status_columns.append(view, rows, count)
-                    if written > 2:  # ``[[…],[…]]``: the rows without the brackets
-                        batch.writes.append(view[stop + 1 : end - 1])
-                elif (
-                    channel == ticks
-                    and magic == columns.TICKS_MAGIC
-                    and not flags & columns.TEARDOWN
-                    and not written
-                    and rows + count * columns.TICK_ROW_BYTES == end
-                ):
-                    tick_columns.append(view, rows, count)
-                else:  # another message, or one that does not check out (said there)
-                    cut = False
-                if cut:
-                    if status_columns.size + tick_columns.size >= BATCH_BYTES:
-                        self._hand_over()
-                        batch = self.batch
-                        status_columns, tick_columns = batch.status_columns, batch.tick_columns
-                    continue
             self._record(opcode, buffer, body, end)
-            events, ticks = self.events_channel, self.ticks_channel
-            batch = self.batch
-            status_columns, tick_columns = batch.status_columns, batch.tick_columns
 
     def _hand_over(self) -> None:
         """Hand the batch over and start a new one."""
@@ -246,11 +201,11 @@ class McapScan:
 
     def _events(self, buffer: bytes, start: int, end: int) -> None:
         if buffer[start : start + 4] == columns.EVENTS_MAGIC:
-            message = columns.locate(buffer, start, end)
-            self.batch.status_columns.add(buffer, message)
-            writes, writes_end = message.writes
-            if writes_end - writes > 2:  # ``[[…],[…]]``: the rows without the brackets
-                self.batch.writes.append(memoryview(buffer)[writes + 1 : writes_end - 1])
+            view, rows, count, written, _flags = _binary(buffer, start, end, _EVENT_ROW)
+            self.batch.status_columns.append(view, rows, count)
+            if written > 2:  # ``[[…],[…]]``: the rows without the brackets
+                stop = end - written
+                self.batch.writes.append(view[stop + 1 : end - 1])
             return
         find = buffer.find
         status = find(_STATUS_KEY, start + 8, start + 40) + 11
@@ -273,11 +228,11 @@ class McapScan:
         """A binary ticks message, cut where it lies (False for another kind)."""
         if buffer[start : start + 4] != columns.TICKS_MAGIC:
             return False
-        message = columns.locate(buffer, start, end)
-        if message.teardown:
+        view, rows, count, _written, flags = _binary(buffer, start, end, _TICK_ROW)
+        if flags & columns.TEARDOWN:
             self.out.other_ticks.append(bytes(buffer[start:end]))
         else:
-            self.batch.tick_columns.add(buffer, message)
+            self.batch.tick_columns.append(view, rows, count)
         return True
 
     def _channel(self, channel: Channel) -> None:
@@ -295,12 +250,8 @@ class McapScan:
         payload = bytes(buffer[body + MESSAGE_HEAD : end])
         out = self.out
         if topic == fmt.TICKS_TOPIC:
-            if payload.startswith(columns.TICKS_MAGIC):
-                message = columns.locate(payload, 0, len(payload))
-                if message.teardown:
-                    out.other_ticks.append(payload)
-                else:
-                    self.batch.tick_columns.add(payload, message)
+            if self._binary_ticks(payload, 0, len(payload)):
+                pass
             elif payload.startswith(_TICKS_HEAD) and payload.endswith(_TAIL):
                 if len(payload) > len(_TICKS_HEAD) + 2:
                     self.batch.ticks += memoryview(payload)[len(_TICKS_HEAD) : -2]
@@ -313,3 +264,21 @@ class McapScan:
             out.answers.append(orjson.loads(payload))
         elif topic == fmt.TREE_TOPIC and out.tree is None:
             out.tree = orjson.loads(payload)
+
+
+_EVENT_ROW, _TICK_ROW = columns.EVENT_ROW_BYTES, columns.TICK_ROW_BYTES
+
+
+def _binary(
+    buffer: bytes, start: int, end: int, row_bytes: int
+) -> tuple[memoryview, int, int, int, int]:
+    """Where the parts of the binary message ``buffer[start:end]`` lie: (a view of the
+    buffer, its first row's offset, its rows, its bytes of writes, its flags). A message
+    whose lengths do not match is ``columns.locate``'s ValueError, which says how."""
+    if end - start >= columns.HEAD.size:
+        _magic, count, written, flags, _tick = columns.HEAD.unpack_from(buffer, start)
+        rows = start + columns.HEAD.size
+        if rows + count * row_bytes + written == end:
+            return memoryview(buffer), rows, count, written, flags
+    columns.locate(buffer, start, end)  # raises, naming what does not match
+    raise ValueError(f"a binary message of {end - start} bytes does not match its head")
