@@ -44,13 +44,14 @@ def test_json_and_csv_are_the_whole_result_row_by_row(run, tmp_path):
 
 
 def test_a_result_of_millions_of_rows_is_printed_in_bounded_memory(run, tmp_path):
-    query = "SELECT range AS n, range * 7 AS m FROM range(3000000)"
+    query = "SELECT range AS n, range * 7 AS m FROM range(10000000)"
     args = btlog_command("sql", run, query, "--format", "csv", "--cache-dir", tmp_path)
     with tempfile.TemporaryFile() as out:
         child = subprocess.Popen(args, stdout=out, stderr=subprocess.PIPE, env=btlog_environment())
         _pid, status, usage = os.wait4(child.pid, 0)
         assert status == 0
-        assert out.seek(0, os.SEEK_END) > 3_000_000 * 4
-    # read whole, the 3M rows took 1.2 GB; streamed, ~110 MB alone and up to ~330 MB
-    # with the suite's other workers running (DuckDB's and the allocator's threads)
-    assert usage.ru_maxrss * 1024 < 500_000_000, usage.ru_maxrss
+        assert out.seek(0, os.SEEK_END) > 10_000_000 * 4
+    # read whole, 3M rows took 1.2 GB (10M: ~4 GB); streamed, ~110 MB alone, but up to
+    # 944 MB was seen with the suite's other workers running (cause not found): the bound
+    # is the one the README promises for every command, 2 GB, less a margin
+    assert usage.ru_maxrss * 1024 < 1_500_000_000, usage.ru_maxrss
