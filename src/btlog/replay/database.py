@@ -40,7 +40,7 @@ from btlog.replay.deadline import QueryTimeout, time_limit
 from btlog.replay.moments import MomentError
 from btlog.replay.run import ReplayError, Run, RunInfo, TimelineEntry
 from btlog.replay.snapshots import DEFAULT_SNAPSHOT_EVERY
-from btlog.replay.tables import INGEST_VERSION, PUBLIC_TABLES, create_schema, only_row
+from btlog.replay.tables import INGEST_VERSION, PUBLIC_TABLES, create_schema, literal, only_row
 
 if TYPE_CHECKING:  # ingestion (and pyarrow) is imported when a run is read, not when cached
     from btlog.replay import ingest as ingestion
@@ -233,11 +233,21 @@ class RunDatabase:
             len(rows) == 1
             and rows[0][:2] == (os.stat(path).st_size, INGEST_VERSION)
             and rows[0][2] >= self.snapshot_every
+            and self._transitions_readable(catalog)
         ):
             self._attached.add(place)
             return True
         self.con.execute(f"DETACH {catalog}")
         return False
+
+    def _transitions_readable(self, catalog: str) -> bool:
+        """Whether the cache's ``transitions`` view finds its file (a cache folder moved
+        elsewhere, or a file removed by hand, is built again)."""
+        try:
+            self.con.execute(f"SELECT count(*) FROM {catalog}.transitions").fetchall()
+        except duckdb.Error:
+            return False
+        return True
 
     def _ingest_in_memory(self, path: str, catalog: str) -> None:
         from btlog.replay import ingest as ingestion
@@ -310,6 +320,9 @@ class RunDatabase:
         ``enable_external_access``: no ``read_csv``, ``glob``) and no setting that can
         change any more (``lock_configuration``). The runs' caches stay attached
         read-only, so no query can change a later answer. No run can be added afterwards."""
+        files = [str(cache.transitions_path(place)) for place in self._caches.values()]
+        if files:  # the runs' transitions views read these files, and nothing else may
+            self.con.execute(f"SET allowed_paths = [{', '.join(map(literal, files))}]")
         self.con.execute("SET enable_external_access = false")
         self.con.execute("SET lock_configuration = true")
         self.locked = True
@@ -406,7 +419,7 @@ def _file_column(table: str, run: Run) -> str:
     copy of a recording)."""
     if table != "runs":
         return ""
-    return ", '" + run.info.file.replace("'", "''") + "' AS file"
+    return f", {literal(run.info.file)} AS file"
 
 
 __all__ = [

@@ -24,7 +24,7 @@ import orjson
 import btlog
 from btlog.record import format as fmt
 from btlog.record.reader import RecordingError, decode_metadata, read_metadata, tree_of
-from btlog.replay.load import Loader, load_other_messages
+from btlog.replay.load import Destination, Loader, load_other_messages
 from btlog.replay.run_tables import (
     Extent,
     extent_of,
@@ -35,7 +35,14 @@ from btlog.replay.run_tables import (
 )
 from btlog.replay.scan import Collected, McapScan
 from btlog.replay.snapshots import DEFAULT_SNAPSHOT_EVERY, build_snapshots, snapshot_interval
-from btlog.replay.tables import INGEST_VERSION, discard_run, first_row, identifier, one_row
+from btlog.replay.tables import (
+    INGEST_VERSION,
+    discard_run,
+    first_row,
+    identifier,
+    one_row,
+    transitions_view,
+)
 from btlog.tree.model import Tree
 
 
@@ -90,9 +97,13 @@ def load_tables(
     path: str | os.PathLike,
     run_id: str | None = None,
     snapshot_every: int = DEFAULT_SNAPSHOT_EVERY,
+    transitions_file: Path | None = None,
 ) -> IngestReport:
     """Every table of the run but ``_snapshots`` (see ``ingest``); the snapshots are
-    to be ``snapshot_interval`` events apart, at least ``snapshot_every``."""
+    to be ``snapshot_interval`` events apart, at least ``snapshot_every``. With
+    ``transitions_file``, the status changes are written there as Parquet
+    (``btlog.replay.transitions_file``) and ``transitions`` becomes a view of it
+    (for a cache: the file stays beside it)."""
     if snapshot_every < 1:
         raise ValueError(f"snapshot_every must be at least 1, got {snapshot_every}")
     started = time.perf_counter()
@@ -100,7 +111,7 @@ def load_tables(
     stat = os.stat(name)
     run_id = run_id or short_run_id(read_metadata(name), name)
     try:
-        collected = _load_rows(con, run_id, name)
+        collected = _load_rows(con, run_id, name, transitions_file)
         metadata = decode_metadata(name, collected.metadata or {})
         tree_of(name, collected.tree, collected.walk)  # refuses a file without a tree
         tree = collected.tree or {}
@@ -174,26 +185,41 @@ def snapshots_into(
     return stored, time.perf_counter() - started
 
 
-def _load_rows(con: duckdb.DuckDBPyConnection, run_id: str, name: str) -> Collected:
+def _load_rows(
+    con: duckdb.DuckDBPyConnection, run_id: str, name: str, transitions_file: Path | None
+) -> Collected:
     """Walk the file, loading its bulk rows as it goes; returns what else it found."""
-    with tempfile.TemporaryDirectory(prefix="btlog-ingest-") as folder:
-        loader = Loader(con, run_id, Path(folder))
-        try:
-            collected = McapScan(name, loader.submit).run()
-            loader.finish()
-        except (ValueError, TypeError, IndexError) as error:
-            loader.close()
-            if isinstance(error, RecordingError):
+    to = Destination(run_id)
+    if transitions_file is not None:
+        from btlog.replay.transitions_file import TransitionsFile
+
+        to.transitions = TransitionsFile(transitions_file)
+    try:
+        with tempfile.TemporaryDirectory(prefix="btlog-ingest-") as folder:
+            loader = Loader(con, to, Path(folder))
+            try:
+                collected = McapScan(name, loader.submit).run()
+                loader.finish()
+            except (ValueError, TypeError, IndexError) as error:
+                loader.close()
+                if isinstance(error, RecordingError):
+                    raise
+                raise RecordingError(
+                    f"{name}: rows that do not follow the btlog format: "
+                    f"{type(error).__name__}: {error}"
+                ) from None
+            except BaseException:
+                loader.close()
                 raise
-            raise RecordingError(
-                f"{name}: rows that do not follow the btlog format: {type(error).__name__}: {error}"
-            ) from None
-        except BaseException:
-            loader.close()
-            raise
-    if collected.metadata is None:
-        raise RecordingError(f"{name}: not a btlog recording: no {fmt.METADATA_NAME} metadata")
-    load_other_messages(con, run_id, collected, name)
+        if collected.metadata is None:
+            raise RecordingError(f"{name}: not a btlog recording: no {fmt.METADATA_NAME} metadata")
+        load_other_messages(con, to, collected, name)
+    finally:
+        if to.transitions is not None:
+            to.transitions.close()
+    if transitions_file is not None:
+        con.execute("DROP TABLE IF EXISTS transitions")
+        con.execute(transitions_view(run_id, str(transitions_file)))
     return collected
 
 

@@ -20,8 +20,9 @@ from __future__ import annotations
 from collections import deque
 from collections.abc import Callable, Sequence
 from concurrent.futures import Future, ThreadPoolExecutor
+from dataclasses import dataclass
 from pathlib import Path
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 import duckdb
 import orjson
@@ -34,6 +35,9 @@ from btlog.record.walk import RecordingError
 from btlog.replay.scan import Collected, Columns, RowBatch
 from btlog.replay.tables import identifier, insert_arrow, one_row
 from btlog.status import STATUS_NAMES
+
+if TYPE_CHECKING:
+    from btlog.replay.transitions_file import TransitionsFile
 
 #: ``[`` (a row starts) becomes a newline; ``"`` and ``]`` are deleted.
 _ROWS_TO_CSV = bytes.maketrans(b"[", b"\n")
@@ -72,13 +76,30 @@ class _Lane:
             self.cursor.close()
 
 
+@dataclass
+class Destination:
+    """Where a run's rows go: its tables in DuckDB (the connection each load is given),
+    but its status changes to ``transitions`` when that file is given (a cache's:
+    ``btlog.replay.transitions_file``)."""
+
+    run_id: str
+    transitions: TransitionsFile | None = None
+
+    def insert(self, con: duckdb.DuckDBPyConnection, table: str, rows: pa.Table) -> None:
+        """Insert the Arrow table ``rows`` (the table's columns, without ``run_id``)."""
+        if table == "transitions" and self.transitions is not None:
+            self.transitions.write(rows)
+        else:
+            insert_arrow(con, table, self.run_id, rows)
+
+
 class Loader:
     """Loads ``RowBatch``es into DuckDB while the walk goes on, in two lanes (status rows;
     write and tick rows), each in file order. DuckDB and Arrow release the GIL while they
     parse, so walking, parsing CSV and parsing JSON overlap."""
 
-    def __init__(self, con: duckdb.DuckDBPyConnection, run_id: str, folder: Path) -> None:
-        self.run_id = run_id
+    def __init__(self, con: duckdb.DuckDBPyConnection, to: Destination, folder: Path) -> None:
+        self.to = to
         self.folder = folder
         self.rows = _Lane(con, "rows")
         self.writes = _Lane(con, "writes")
@@ -87,19 +108,19 @@ class Loader:
     def submit(self, batch: RowBatch) -> None:
         """Queue a batch's rows."""
         self.batches += 1
-        run_id = self.run_id
+        to = self.to
         if batch.status_columns.count:
-            self.rows.submit(_load_columns, run_id, "transitions", batch.status_columns)
+            self.rows.submit(_load_columns, to, "transitions", batch.status_columns)
         if batch.status:
-            self.rows.submit(_load_csv_rows, run_id, "transitions", batch.status, _STATUS_CSV)
+            self.rows.submit(_load_csv_rows, to, "transitions", batch.status, _STATUS_CSV)
         if batch.writes:
             self.writes.submit(
-                _load_write_rows, run_id, batch.writes, self.folder / f"writes-{self.batches}.jsonl"
+                _load_write_rows, to, batch.writes, self.folder / f"writes-{self.batches}.jsonl"
             )
         if batch.tick_columns.count:
-            self.writes.submit(_load_columns, run_id, "ticks", batch.tick_columns)
+            self.writes.submit(_load_columns, to, "ticks", batch.tick_columns)
         if batch.ticks:
-            self.writes.submit(_load_csv_rows, run_id, "ticks", batch.ticks, _TICKS_CSV)
+            self.writes.submit(_load_csv_rows, to, "ticks", batch.ticks, _TICKS_CSV)
 
     def finish(self) -> None:
         """Wait for every queued batch; re-raises a batch's error."""
@@ -130,7 +151,7 @@ _TICKS_CSV = (
 
 def _load_csv_rows(
     con: duckdb.DuckDBPyConnection,
-    run_id: str,
+    to: Destination,
     table: str,
     rows: bytearray,
     layout: tuple[tuple[str, ...], tuple[pa.DataType, ...]],
@@ -158,16 +179,18 @@ def _load_csv_rows(
     del body
     canonical = None if parsed is None else _canonical_statuses(parsed)
     if canonical is None:
-        _insert_rows(con, run_id, table, orjson.loads(b"[" + bytes(rows[:-1]) + b"]"))
+        _insert_rows(con, to, table, orjson.loads(b"[" + bytes(rows[:-1]) + b"]"))
         return
-    insert_arrow(con, table, run_id, canonical)
+    to.insert(con, table, canonical)
 
 
 _STATUS_DICTIONARY = pa.array(STATUS_NAMES)
 _ARROW_TYPES = {"q": pa.int64(), "i": pa.int32(), "b": pa.int8()}
 
 
-def _load_columns(con: duckdb.DuckDBPyConnection, run_id: str, table: str, batch: Columns) -> None:
+def _load_columns(
+    con: duckdb.DuckDBPyConnection, to: Destination, table: str, batch: Columns
+) -> None:
     """Binary columns into ``table``: each an Arrow array over its bytes (no copy); a
     status column becomes the ENUM's codes once its values are checked."""
     arrays = {}
@@ -180,7 +203,7 @@ def _load_columns(con: duckdb.DuckDBPyConnection, run_id: str, table: str, batch
                 raise ValueError(f"a {table} row has the status code {bad}, not a status")
             array = pa.DictionaryArray.from_arrays(array, _STATUS_DICTIONARY)
         arrays[name] = array
-    insert_arrow(con, table, run_id, pa.table(arrays))
+    to.insert(con, table, pa.table(arrays))
 
 
 def _canonical_statuses(table: pa.Table) -> pa.Table | None:
@@ -210,7 +233,7 @@ WRITE_ROW_BYTES = 16 << 20
 
 
 def _load_write_rows(
-    con: duckdb.DuckDBPyConnection, run_id: str, lines: list[bytes | memoryview], path: Path
+    con: duckdb.DuckDBPyConnection, to: Destination, lines: list[bytes | memoryview], path: Path
 ) -> None:
     """The write rows of each message (``[…],[…]``, without brackets) are written as
     one JSON array, which DuckDB reads an element at a time; rows it refuses are
@@ -228,7 +251,7 @@ def _load_write_rows(
     try:
         for bound in sorted({min(WRITE_ROW_BYTES, longest), longest}):
             try:
-                _read_write_rows(con, run_id, path, bound)
+                _read_write_rows(con, to.run_id, path, bound)
                 return
             except duckdb.Error:
                 if bound == longest:
@@ -236,7 +259,7 @@ def _load_write_rows(
         return
     except duckdb.Error:
         for line in lines:
-            _insert_write_rows(con, run_id, orjson.loads(b"[" + bytes(line) + b"]"))
+            _insert_write_rows(con, to, orjson.loads(b"[" + bytes(line) + b"]"))
     finally:
         path.unlink()
 
@@ -253,7 +276,7 @@ def _read_write_rows(con: duckdb.DuckDBPyConnection, run_id: str, path: Path, bo
     )
 
 
-def _insert_status_rows(con: duckdb.DuckDBPyConnection, run_id: str, rows: list[list]) -> None:
+def _insert_status_rows(con: duckdb.DuckDBPyConnection, to: Destination, rows: list[list]) -> None:
     if not rows:
         return
     columns = list(zip(*rows, strict=True))
@@ -267,10 +290,10 @@ def _insert_status_rows(con: duckdb.DuckDBPyConnection, run_id: str, rows: list[
             "status": pa.array(columns[5], pa.string()),
         }
     )
-    insert_arrow(con, "transitions", run_id, table)
+    to.insert(con, "transitions", table)
 
 
-def _insert_write_rows(con: duckdb.DuckDBPyConnection, run_id: str, rows: list[list]) -> None:
+def _insert_write_rows(con: duckdb.DuckDBPyConnection, to: Destination, rows: list[list]) -> None:
     if not rows:
         return
     columns = list(zip(*rows, strict=True))
@@ -287,11 +310,14 @@ def _insert_write_rows(con: duckdb.DuckDBPyConnection, run_id: str, rows: list[l
             "writer_uid": pa.array(columns[7], pa.int32()),
         }
     )
-    insert_arrow(con, "blackboard", run_id, table)
+    to.insert(con, "blackboard", table)
 
 
 def _insert_tick_rows(
-    con: duckdb.DuckDBPyConnection, run_id: str, rows: Sequence[Sequence], teardown: bool = False
+    con: duckdb.DuckDBPyConnection,
+    to: Destination,
+    rows: Sequence[Sequence],
+    teardown: bool = False,
 ) -> None:
     if not rows:
         return
@@ -305,21 +331,23 @@ def _insert_tick_rows(
             "teardown": pa.array([teardown] * len(rows), pa.bool_()),
         }
     )
-    insert_arrow(con, "ticks", run_id, table)
+    to.insert(con, "ticks", table)
 
 
-def _insert_rows(con: duckdb.DuckDBPyConnection, run_id: str, table: str, rows: list[list]) -> None:
+def _insert_rows(
+    con: duckdb.DuckDBPyConnection, to: Destination, table: str, rows: list[list]
+) -> None:
     """Insert decoded JSON rows (the slow path) into ``table``."""
     inserts = {
         "transitions": _insert_status_rows,
         "blackboard": _insert_write_rows,
         "ticks": _insert_tick_rows,
     }
-    inserts[table](con, run_id, rows)
+    inserts[table](con, to, rows)
 
 
 def load_other_messages(
-    con: duckdb.DuckDBPyConnection, run_id: str, collected: Collected, name: str
+    con: duckdb.DuckDBPyConnection, to: Destination, collected: Collected, name: str
 ) -> None:
     """The messages the fast path did not recognise, decoded one by one."""
     status: list = []
@@ -329,13 +357,13 @@ def load_other_messages(
             message = fmt.parse_events(payload)
             status.extend((*row[:4], row[4].name, row[5].name) for row in message.status)
             writes.extend(message.writes)
-        _insert_status_rows(con, run_id, status)
-        _insert_write_rows(con, run_id, writes)
+        _insert_status_rows(con, to, status)
+        _insert_write_rows(con, to, writes)
         for payload in collected.other_ticks:  # the teardown's message is one of these
             ticks = fmt.decode_ticks(payload)
             _insert_tick_rows(
                 con,
-                run_id,
+                to,
                 [(t.tick, t.start_ns, t.end_ns, t.root_status.name) for t in ticks],
                 any(t.teardown for t in ticks),
             )

@@ -19,7 +19,7 @@ if TYPE_CHECKING:
 from btlog.status import STATUS_NAMES
 
 #: The layout of the read model; part of the cache key (bump when a table changes).
-INGEST_VERSION = "5"
+INGEST_VERSION = "6"
 
 SCHEMA = (
     # Status is numbered as BT.CPP numbers it; the ENUM uses the same order.
@@ -99,6 +99,31 @@ def identifier(name: str) -> str:
     return '"' + name.replace('"', '""') + '"'
 
 
+def literal(text: str) -> str:
+    """A quoted SQL string literal (for the few statements that take no parameters:
+    a view's definition, a setting)."""
+    return "'" + text.replace("'", "''") + "'"
+
+
+def _status_of_code(column: str) -> str:
+    """The ENUM ``status`` of a column of status codes. DuckDB casts no integer to an
+    ENUM; its optimizer turns a comparison of this ``CASE`` with a constant into one of
+    the codes, which the Parquet row groups' statistics then answer."""
+    cases = " ".join(f"WHEN {code} THEN '{name}'::status" for code, name in enumerate(STATUS_NAMES))
+    return f"CASE {column} {cases} END"
+
+
+def transitions_view(run_id: str, path: str) -> str:
+    """The statement making ``transitions`` of the current catalog a view of run
+    ``run_id``'s status changes in the Parquet file ``path``
+    (``btlog.replay.transitions_file``): the table's columns, the ENUM's statuses."""
+    return (
+        f"CREATE OR REPLACE VIEW transitions AS SELECT {literal(run_id)} AS run_id, seq, t_ns, "
+        f"tick, uid, {_status_of_code('prev_status')} AS prev_status, "
+        f"{_status_of_code('status')} AS status FROM read_parquet({literal(path)})"
+    )
+
+
 def insert_arrow(
     con: duckdb.DuckDBPyConnection, table_name: str, run_id: str, table: pa.Table
 ) -> None:
@@ -117,6 +142,15 @@ def insert_arrow(
 
 
 def discard_run(con: duckdb.DuckDBPyConnection, run_id: str) -> None:
-    """Delete every row of run ``run_id`` (a failed ingestion leaves nothing behind)."""
+    """Delete every row of run ``run_id`` (a failed ingestion leaves nothing behind);
+    a view over a file (``transitions_view``) goes with its file."""
+    tables = {
+        name
+        for (name,) in con.execute(
+            """SELECT table_name FROM duckdb_tables()
+            WHERE database_name = current_database() AND schema_name = current_schema()"""
+        ).fetchall()
+    }
     for table in PUBLIC_TABLES + INTERNAL_TABLES:
-        con.execute(f"DELETE FROM {table} WHERE run_id = $run_id", {"run_id": run_id})
+        if table in tables:
+            con.execute(f"DELETE FROM {table} WHERE run_id = $run_id", {"run_id": run_id})
