@@ -172,11 +172,17 @@ def mapped(path: str | os.PathLike) -> Iterator[tuple[mmap.mmap, int]]:
             data.close()
 
 
-def top_records(data: mmap.mmap | bytes, size: int, walk: Walk) -> Iterator[tuple[int, int, int]]:
+def top_records(
+    data: mmap.mmap | bytes, size: int, walk: Walk, start: int = len(MAGIC), stop: int | None = None
+) -> Iterator[tuple[int, int, int]]:
     """``(opcode, body, end)`` of every top-level record up to the footer, chunks left
-    closed; damaged framing is resynchronised on the next sound chunk (see the module)."""
-    position = len(MAGIC)
+    closed; damaged framing is resynchronised on the next sound chunk (see the module).
+    ``start`` and ``stop``: only the records from byte ``start`` (where a record starts)
+    to byte ``stop`` (a part of the file, ``btlog.replay.parts``)."""
+    position = start
     while position + HEAD.size <= size:
+        if stop is not None and position >= stop:
+            return
         opcode, length = HEAD.unpack_from(data, position)
         body = position + HEAD.size
         end = body + length
@@ -199,7 +205,12 @@ def top_records(data: mmap.mmap | bytes, size: int, walk: Walk) -> Iterator[tupl
 
 
 def records(
-    data: mmap.mmap | bytes, size: int, walk: Walk, opened: bool = False
+    data: mmap.mmap | bytes,
+    size: int,
+    walk: Walk,
+    opened: bool = False,
+    start: int = len(MAGIC),
+    stop: int | None = None,
 ) -> Iterator[tuple[int, Any, int, int]]:
     """``(opcode, buffer, body, end)`` of every record of the file, the records inside
     each chunk instead of the chunk; a damaged chunk is skipped with a warning.
@@ -213,14 +224,17 @@ def records(
     caller to walk (``inner_records``, or a loop of its own that cuts millions of
     messages without a generator step each); every channel is then known already, so
     nothing is held back: a message of a channel the file never defines is the
-    caller's to skip. Without a sound summary, chunks come record by record as usual."""
+    caller's to skip. Without a sound summary, chunks come record by record as usual.
+
+    ``start`` and ``stop``: the records of that part of the file only (``top_records``);
+    the summary's schemas and channels still come first."""
     state = _summary(data, size)
     summary = state if isinstance(state, tuple) else None
     known: set[int] = set()
     held: dict[int, list[bytes]] = {}
     primed = summary is None
     in_summary = False
-    for item in _file_records(data, size, walk, opened):
+    for item in _file_records(data, size, walk, opened, start, stop):
         if item[0] == OPENED_CHUNK and summary is None:
             walked: Iterable[tuple[int, Any, int, int]] = inner_records(item[1])
         else:
@@ -266,12 +280,17 @@ def records(
 
 
 def _file_records(
-    data: mmap.mmap | bytes, size: int, walk: Walk, opened: bool = False
+    data: mmap.mmap | bytes,
+    size: int,
+    walk: Walk,
+    opened: bool = False,
+    start: int = len(MAGIC),
+    stop: int | None = None,
 ) -> Iterator[tuple[int, Any, int, int]]:
-    """The records of the file in file order, chunks opened (``walk.chunk`` tells which
-    chunk the records come from); ``opened``: each chunk's records as one
-    ``OPENED_CHUNK`` item (see ``records``)."""
-    for opcode, body, end in top_records(data, size, walk):
+    """The records of the file (from ``start`` to ``stop``) in file order, chunks opened
+    (``walk.chunk`` tells which chunk the records come from); ``opened``: each chunk's
+    records as one ``OPENED_CHUNK`` item (see ``records``)."""
+    for opcode, body, end in top_records(data, size, walk, start, stop):
         if opcode != Opcode.CHUNK:
             walk.chunk = None
             yield opcode, data, body, end
@@ -311,6 +330,29 @@ def _summary(data: mmap.mmap | bytes, size: int) -> tuple[int, int] | bool:
         return True
     end = offsets if start <= offsets <= footer else footer
     return start, end
+
+
+def chunk_starts(data: mmap.mmap | bytes, size: int) -> list[int]:
+    """The byte offsets of the file's chunks, as its sound summary's chunk indexes list
+    them, in file order (empty without a sound summary, or when an offset does not hold
+    a chunk record)."""
+    summary = sound_summary(data, size)
+    if summary is None:
+        return []
+    position, stop = summary
+    starts = []
+    while position + HEAD.size <= stop:
+        opcode, length = HEAD.unpack_from(data, position)
+        body, end = position + HEAD.size, position + HEAD.size + length
+        if end > stop:
+            return []
+        if opcode == Opcode.CHUNK_INDEX and length >= 32:
+            (offset,) = _U64.unpack_from(data, body + 16)
+            if not len(MAGIC) <= offset <= size - HEAD.size or data[offset] != Opcode.CHUNK:
+                return []
+            starts.append(offset)
+        position = end
+    return sorted(starts)
 
 
 def _summary_records(

@@ -29,6 +29,7 @@ first answer about one moment of a long run does not wait for the whole run's.
 from __future__ import annotations
 
 import contextlib
+import glob
 import hashlib
 import os
 import re
@@ -45,9 +46,10 @@ if TYPE_CHECKING:  # ingestion (and pyarrow) is imported to build a cache, not t
     from btlog.replay import ingest as ingestion
 
 SUFFIX = ".duckdb"
-#: The status changes of a cache ``NAME.duckdb`` are in ``NAME.transitions.parquet``
-#: (``btlog.replay.transitions_file``), which its ``transitions`` view reads.
-TRANSITIONS_SUFFIX = ".transitions.parquet"
+#: The status changes of a cache ``NAME.duckdb`` are in ``NAME.transitions.N.parquet``,
+#: one file per part of the recording read (``btlog.replay.parts``), which its
+#: ``transitions`` view reads (``btlog.replay.transitions_file``).
+TRANSITIONS_SUFFIX = ".parquet"
 #: The snapshots of segment N of a cache ``NAME.duckdb`` are in ``NAME.N.snapshots.duckdb``.
 SNAPSHOTS_SUFFIX = ".snapshots" + SUFFIX
 _SEGMENT = re.compile(r"\.\d+$")
@@ -149,8 +151,9 @@ def entries(root: Path) -> list[CacheEntry]:
             except OSError:
                 continue
             size = stat.st_size
-            with contextlib.suppress(OSError):
-                size += transitions_path(path).stat().st_size
+            for part in transitions_paths(path):
+                with contextlib.suppress(OSError):
+                    size += part.stat().st_size
             found.append(CacheEntry(path, size, stat.st_mtime_ns))
     return sorted(found, key=lambda entry: entry.last_used_ns)
 
@@ -202,8 +205,8 @@ def evict(root: Path, limit: int, keep: set[Path]) -> list[Path]:
             continue
         entry.path.unlink(missing_ok=True)
         Path(f"{entry.path}.wal").unlink(missing_ok=True)
-        if not entry.path.name.endswith(SNAPSHOTS_SUFFIX):
-            transitions_path(entry.path).unlink(missing_ok=True)
+        for part in transitions_paths(entry.path):
+            part.unlink(missing_ok=True)
         total -= entry.size
         removed.append(entry.path)
     return removed
@@ -250,8 +253,12 @@ def build(path: str, cache: Path, snapshot_every: int) -> ingestion.IngestReport
 
     cache.parent.mkdir(parents=True, exist_ok=True)
     temporary = _temporary(cache)
-    transitions = transitions_path(cache)
-    temporary_transitions = _temporary(transitions)
+    parts: dict[int, Path] = {}
+
+    def part_file(number: int) -> Path:
+        parts[number] = _temporary(transitions_path(cache, number))
+        return parts[number]
+
     con = connect()
     try:
         small = os.path.getsize(path) < SMALL_RECORDING
@@ -259,24 +266,40 @@ def build(path: str, cache: Path, snapshot_every: int) -> ingestion.IngestReport
         con.execute("USE cache_file")
         create_schema(con)
         report = ingestion.load_tables(
-            con, path, snapshot_every=snapshot_every, transitions_file=temporary_transitions
+            con, path, snapshot_every=snapshot_every, transitions_files=part_file
         )
-        os.replace(temporary_transitions, transitions)
-        con.execute(transitions_view(report.run_id, str(transitions)))
+        files = [transitions_path(cache, number) for number in sorted(parts)]
+        for stale in set(transitions_paths(cache)) - set(files):  # a build in more parts
+            stale.unlink(missing_ok=True)
+        for number, file in enumerate(files):
+            os.replace(parts[number], file)
+        con.execute(transitions_view(report.run_id, [str(file) for file in files]))
         con.execute("USE memory")
         con.execute("DETACH cache_file")
         os.replace(temporary, cache)
     finally:
         con.close()
         _remove_temporary(temporary)
-        temporary_transitions.unlink(missing_ok=True)
+        for part in parts.values():
+            part.unlink(missing_ok=True)
     return report
 
 
-def transitions_path(cache: Path) -> Path:
-    """The Parquet file of the status changes of the cache ``cache``
-    (``btlog.replay.transitions_file``)."""
-    return cache.with_name(cache.name.removesuffix(SUFFIX) + TRANSITIONS_SUFFIX)
+def transitions_path(cache: Path, part: int) -> Path:
+    """The Parquet file of the status changes of part ``part`` of the recording cached
+    in ``cache`` (``btlog.replay.transitions_file``)."""
+    return cache.with_name(
+        f"{cache.name.removesuffix(SUFFIX)}.transitions.{part}{TRANSITIONS_SUFFIX}"
+    )
+
+
+def transitions_paths(cache: Path) -> list[Path]:
+    """The transitions files of the cache ``cache`` that exist (none for a snapshots
+    file)."""
+    if cache.name.endswith(SNAPSHOTS_SUFFIX):
+        return []
+    stem = glob.escape(cache.name.removesuffix(SUFFIX))
+    return sorted(cache.parent.glob(f"{stem}.transitions.*{TRANSITIONS_SUFFIX}"))
 
 
 def snapshots_path(cache: Path, segment: int) -> Path:

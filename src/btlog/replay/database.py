@@ -320,7 +320,9 @@ class RunDatabase:
         ``enable_external_access``: no ``read_csv``, ``glob``) and no setting that can
         change any more (``lock_configuration``). The runs' caches stay attached
         read-only, so no query can change a later answer. No run can be added afterwards."""
-        files = [str(cache.transitions_path(place)) for place in self._caches.values()]
+        files = [
+            str(file) for place in self._caches.values() for file in cache.transitions_paths(place)
+        ]
         if files:  # the runs' transitions views read these files, and nothing else may
             self.con.execute(f"SET allowed_paths = [{', '.join(map(literal, files))}]")
         self.con.execute("SET enable_external_access = false")

@@ -14,6 +14,7 @@ from __future__ import annotations
 import os
 import tempfile
 import time
+from collections.abc import Callable
 from dataclasses import dataclass, replace
 from pathlib import Path
 from typing import Any
@@ -97,13 +98,14 @@ def load_tables(
     path: str | os.PathLike,
     run_id: str | None = None,
     snapshot_every: int = DEFAULT_SNAPSHOT_EVERY,
-    transitions_file: Path | None = None,
+    transitions_files: Callable[[int], Path] | None = None,
 ) -> IngestReport:
     """Every table of the run but ``_snapshots`` (see ``ingest``); the snapshots are
     to be ``snapshot_interval`` events apart, at least ``snapshot_every``. With
-    ``transitions_file``, the status changes are written there as Parquet
-    (``btlog.replay.transitions_file``) and ``transitions`` becomes a view of it
-    (for a cache: the file stays beside it)."""
+    ``transitions_files``, the status changes are written as Parquet
+    (``btlog.replay.transitions_file``) to ``transitions_files(n)`` for each part ``n``
+    of the file read (``btlog.replay.parts``), and ``transitions`` becomes a view of
+    them (for a cache: the files stay beside it)."""
     if snapshot_every < 1:
         raise ValueError(f"snapshot_every must be at least 1, got {snapshot_every}")
     started = time.perf_counter()
@@ -111,7 +113,7 @@ def load_tables(
     stat = os.stat(name)
     run_id = run_id or short_run_id(read_metadata(name), name)
     try:
-        collected = _load_rows(con, run_id, name, transitions_file)
+        collected = _load_rows(con, run_id, name, transitions_files)
         metadata = decode_metadata(name, collected.metadata or {})
         tree_of(name, collected.tree, collected.walk)  # refuses a file without a tree
         tree = collected.tree or {}
@@ -186,20 +188,38 @@ def snapshots_into(
 
 
 def _load_rows(
-    con: duckdb.DuckDBPyConnection, run_id: str, name: str, transitions_file: Path | None
+    con: duckdb.DuckDBPyConnection,
+    run_id: str,
+    name: str,
+    transitions_files: Callable[[int], Path] | None,
 ) -> Collected:
-    """Walk the file, loading its bulk rows as it goes; returns what else it found."""
+    """Walk the file, loading its bulk rows as it goes; returns what else it found.
+    With ``transitions_files`` (the file of each part's status changes), a long
+    recording is read in parts, each in a process of its own (``btlog.replay.parts``),
+    and ``transitions`` becomes a view of the files."""
     to = Destination(run_id)
-    if transitions_file is not None:
-        from btlog.replay.transitions_file import TransitionsFile
-
-        to.transitions = TransitionsFile(transitions_file)
+    first, scans, files = McapScan(name, lambda batch: None), [], []
     try:
         with tempfile.TemporaryDirectory(prefix="btlog-ingest-") as folder:
+            if transitions_files is not None:
+                from btlog.replay import parts
+                from btlog.replay.transitions_file import TransitionsFile
+
+                plan = parts.plan(name)
+                files = [transitions_files(number) for number in range(len(plan))]
+                scans = [
+                    parts.PartScan(name, part, run_id, files[n], Path(folder) / f"part-{n}")
+                    for n, part in enumerate(plan)
+                    if n
+                ]
+                to.transitions = TransitionsFile(files[0])
+                first = McapScan(name, lambda batch: None, plan[0].start, plan[0].stop)
             loader = Loader(con, to, Path(folder))
+            first.on_batch = loader.submit
             try:
-                collected = McapScan(name, loader.submit).run()
+                collected = first.run()
                 loader.finish()
+                others = [scan.rows() for scan in scans]
             except (ValueError, TypeError, IndexError) as error:
                 loader.close()
                 if isinstance(error, RecordingError):
@@ -211,15 +231,25 @@ def _load_rows(
             except BaseException:
                 loader.close()
                 raise
+            if others:
+                for rows in others:
+                    for table, file in (("ticks", rows.ticks), ("blackboard", rows.blackboard)):
+                        con.execute(
+                            f"INSERT INTO {table} SELECT * FROM read_parquet($file)",
+                            {"file": str(file)},
+                        )
+                collected = parts.merge(collected, [rows.collected for rows in others])
         if collected.metadata is None:
             raise RecordingError(f"{name}: not a btlog recording: no {fmt.METADATA_NAME} metadata")
         load_other_messages(con, to, collected, name)
     finally:
+        for scan in scans:
+            scan.stop()
         if to.transitions is not None:
             to.transitions.close()
-    if transitions_file is not None:
+    if files:
         con.execute("DROP TABLE IF EXISTS transitions")
-        con.execute(transitions_view(run_id, str(transitions_file)))
+        con.execute(transitions_view(run_id, [str(file) for file in files]))
     return collected
 
 

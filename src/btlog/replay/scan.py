@@ -28,7 +28,7 @@ from mcap.records import Channel
 from btlog.record import columns
 from btlog.record import format as fmt
 from btlog.record.reader import seq_of
-from btlog.record.walk import HEAD, MESSAGE_HEAD, OPENED_CHUNK, Walk, mapped, records
+from btlog.record.walk import HEAD, MAGIC, MESSAGE_HEAD, OPENED_CHUNK, Walk, mapped, records
 
 _EVENTS_HEAD = b'{"tick":'
 _STATUS_KEY = b',"status":['
@@ -122,8 +122,16 @@ class McapScan:
     """Scans a recording, handing each ``RowBatch`` of about ``BATCH_BYTES`` to
     ``on_batch`` as soon as it is full."""
 
-    def __init__(self, path: str, on_batch: Callable[[RowBatch], None]) -> None:
+    def __init__(
+        self,
+        path: str,
+        on_batch: Callable[[RowBatch], None],
+        start: int = len(MAGIC),
+        stop: int | None = None,
+    ) -> None:
         self.path = path
+        #: the part of the file to scan: its records from byte ``start`` to ``stop``
+        self.start, self.stop = start, stop
         self.out = Collected(Walk(path))
         self.topics: dict[int, str] = {}
         self.events_channel: bytes | None = None
@@ -136,7 +144,8 @@ class McapScan:
     def run(self) -> Collected:
         """Scan the whole file; the last batch is handed over too."""
         with mapped(self.path) as (data, size):
-            self._scan(records(data, size, self.out.walk, opened=True))
+            walked = records(data, size, self.out.walk, True, self.start, self.stop)
+            self._scan(walked)
         if self.unknown_channel:
             self.out.walk.warnings.append(
                 f"{self.path}: {self.unknown_channel} messages of channels the file never "

@@ -113,14 +113,15 @@ def _status_of_code(column: str) -> str:
     return f"CASE {column} {cases} END"
 
 
-def transitions_view(run_id: str, path: str) -> str:
+def transitions_view(run_id: str, paths: list[str]) -> str:
     """The statement making ``transitions`` of the current catalog a view of run
-    ``run_id``'s status changes in the Parquet file ``path``
+    ``run_id``'s status changes in the Parquet files ``paths``
     (``btlog.replay.transitions_file``): the table's columns, the ENUM's statuses."""
+    files = ", ".join(literal(path) for path in paths)
     return (
         f"CREATE OR REPLACE VIEW transitions AS SELECT {literal(run_id)} AS run_id, seq, t_ns, "
         f"tick, uid, {_status_of_code('prev_status')} AS prev_status, "
-        f"{_status_of_code('status')} AS status FROM read_parquet({literal(path)})"
+        f"{_status_of_code('status')} AS status FROM read_parquet([{files}])"
     )
 
 

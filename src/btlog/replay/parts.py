@@ -1,0 +1,190 @@
+"""Reading a long recording in several processes at once, each a part of its chunks.
+
+Cutting a recording's messages into columns costs Python a few microseconds a message
+(``btlog.replay.scan``), and a day-long run has a million messages: one core's work, and
+what a first answer about a long run waits for. A finished recording's summary lists
+where each chunk starts, so the file can be cut at chunk boundaries into parts of about
+equal size (``plan``), each scanned by a process of its own with its own loader
+(``btlog.replay.load``). A part's status changes go to a Parquet file of their own
+(``btlog.replay.transitions_file``); its ticks and blackboard writes are loaded into a
+DuckDB of the part's own and handed over as Parquet files, which the caller inserts
+into its tables; what else the scan collected (the tree, mutations, answers, warnings)
+comes back with them (``merge``). The first part is the caller's own, scanned while the
+others run.
+
+A file without a sound summary (a cut recording), a small file, or a machine of one
+core is read in one part; the tables are the same, row for row, however many parts.
+"""
+
+from __future__ import annotations
+
+import multiprocessing
+import os
+from dataclasses import dataclass
+from multiprocessing.connection import Connection
+from pathlib import Path
+from typing import Any
+
+from btlog.errors import one_line
+from btlog.record.reader import seq_of
+from btlog.record.walk import MAGIC, RecordingError, chunk_starts, mapped
+from btlog.replay.connections import connect
+from btlog.replay.load import Destination, Loader
+from btlog.replay.scan import Collected, McapScan
+from btlog.replay.tables import create_schema, literal
+from btlog.replay.transitions_file import TransitionsFile
+
+#: Bytes of a recording below which one process reads it (a process takes ~0.5 s to start).
+MIN_PART_BYTES = 48 << 20
+#: The most parts: each process holds its own batches and DuckDB (a few hundred MB).
+MAX_PARTS = 4
+
+
+@dataclass(frozen=True)
+class Part:
+    """The records of a recording from byte ``start`` up to byte ``stop`` (None: its end)."""
+
+    start: int
+    stop: int | None
+
+
+def plan(path: str) -> list[Part]:
+    """The parts to read ``path`` in: one per core (at most ``MAX_PARTS``), each about
+    ``MIN_PART_BYTES`` (``$BTLOG_PART_BYTES``) or more, cut where a chunk starts; one
+    part for a file whose summary does not list its chunks."""
+    size = os.path.getsize(path)
+    try:
+        part_bytes = max(int(os.environ.get("BTLOG_PART_BYTES", MIN_PART_BYTES)), 1)
+    except ValueError:
+        part_bytes = MIN_PART_BYTES
+    count = min(_cores(), MAX_PARTS, size // part_bytes)
+    whole = [Part(len(MAGIC), None)]
+    if count < 2:
+        return whole
+    with mapped(path) as (data, mapped_size):
+        starts = chunk_starts(data, mapped_size)
+    cuts: list[int] = []
+    for number in range(1, count):
+        target = size * number // count
+        cut = next((start for start in starts if start >= target), None)
+        if cut is not None and cut > max(cuts, default=len(MAGIC)):
+            cuts.append(cut)
+    if not cuts:
+        return whole
+    return [Part(a, b) for a, b in zip([len(MAGIC), *cuts], [*cuts, None], strict=True)]
+
+
+def _cores() -> int:
+    """The cores this process may run on."""
+    try:
+        return len(os.sched_getaffinity(0))
+    except AttributeError:  # not Linux
+        return os.cpu_count() or 1
+
+
+@dataclass
+class PartRows:
+    """What a part's scan gives back: what it collected, and its ticks and blackboard
+    rows as Parquet files (its status changes are in the transitions file it was given)."""
+
+    collected: Collected
+    ticks: Path
+    blackboard: Path
+
+
+def scan_part(path: str, part: Part, run_id: str, transitions: Path, folder: Path) -> PartRows:
+    """Scan ``part`` of the recording ``path`` as run ``run_id``: its status changes into
+    the Parquet file ``transitions``, its ticks and writes into files in ``folder``."""
+    folder.mkdir(parents=True, exist_ok=True)
+    con = connect()
+    try:
+        create_schema(con)
+        to = Destination(run_id, TransitionsFile(transitions))
+        try:
+            loader = Loader(con, to, folder)
+            try:
+                collected = McapScan(path, loader.submit, part.start, part.stop).run()
+                loader.finish()
+            except BaseException:
+                loader.close()
+                raise
+        finally:
+            if to.transitions is not None:
+                to.transitions.close()
+        rows = PartRows(collected, folder / "ticks.parquet", folder / "blackboard.parquet")
+        for table, file in (("ticks", rows.ticks), ("blackboard", rows.blackboard)):
+            con.execute(f"COPY {table} TO {literal(str(file))} (FORMAT parquet)")
+        return rows
+    finally:
+        con.close()
+
+
+class PartScan:
+    """``scan_part`` running in a process of its own (spawned: the caller's DuckDB
+    threads are not forked); ``rows`` waits for it, ``stop`` ends it early."""
+
+    def __init__(self, path: str, *args: Any) -> None:
+        context = multiprocessing.get_context("spawn")
+        self._results, sender = context.Pipe(duplex=False)
+        self._process = context.Process(target=_serve, args=(sender, path, *args), daemon=True)
+        self._process.start()
+        sender.close()
+
+    def rows(self) -> PartRows:
+        """The part's rows once its scan ends; its error, raised here, if it failed."""
+        try:
+            outcome = self._results.recv()
+        except EOFError:
+            self._process.join()
+            raise RecordingError(
+                f"the process reading a part of the recording ended (exit code "
+                f"{self._process.exitcode})"
+            ) from None
+        self._process.join()
+        if isinstance(outcome, BaseException):
+            raise outcome
+        return outcome
+
+    def stop(self) -> None:
+        """End the scan if it still runs."""
+        if self._process.is_alive():
+            self._process.terminate()
+        self._process.join()
+        self._results.close()
+
+
+def _serve(results: Connection, path: str, *args: Any) -> None:
+    """Run ``scan_part(path, *args)`` and send its rows, or its error, to ``results``."""
+    try:
+        outcome: Any = scan_part(path, *args)
+    except RecordingError as error:
+        outcome = error
+    except (ValueError, TypeError, IndexError) as error:
+        outcome = RecordingError(
+            f"{path}: rows that do not follow the btlog format: {type(error).__name__}: {error}"
+        )
+    except Exception as error:  # DuckDB's and the OS's errors do not all survive pickling
+        outcome = RuntimeError(one_line(error))
+    results.send(outcome)
+    results.close()
+
+
+def merge(first: Collected, others: list[Collected]) -> Collected:
+    """What the scans of consecutive parts collected, as one scan of the whole file
+    would have."""
+    for other in others:
+        if first.metadata is None:
+            first.metadata = other.metadata
+        if first.tree is None:
+            first.tree = other.tree
+        first.mutations.extend(other.mutations)
+        first.answers.extend(other.answers)
+        first.other_events.extend(other.other_events)
+        first.other_ticks.extend(other.other_ticks)
+        first.walk.warnings.extend(other.walk.warnings)
+        first.walk.dropped.extend(other.walk.dropped)
+        first.walk.truncated = other.walk.truncated  # the last part's end is the file's
+        first.walk.summary = first.walk.summary or other.walk.summary
+    first.mutations.sort(key=seq_of)
+    first.answers.sort(key=seq_of)
+    return first
