@@ -27,20 +27,14 @@ LOOP = """<root BTCPP_format="4"><BehaviorTree ID="MainTree">
   <KeepRunningUntilFailure><Sequence name="work">
     <Action ID="Look" name="look"/><Fallback name="get">
       <Action ID="Grasp" name="grasp"/><Action ID="Regrasp" name="regrasp"/></Fallback>
-    <Script code="count := count + 1"/><Action ID="Place" name="place"/>
+    <Script code="count := 1"/><Action ID="Place" name="place"/>
   </Sequence></KeepRunningUntilFailure>
 </BehaviorTree></root>"""
 OUTCOMES = {
     "default": {"status": "SUCCESS", "ticks": 2},
-    "grasp": {"sequence": ["FAILURE", "SUCCESS", "SUCCESS"], "ticks": 1},
+    "nodes": {"grasp": ["FAILURE", "SUCCESS", "SUCCESS"] * 400},
 }
-TABLES = {
-    "transitions": "seq",
-    "ticks": "tick",
-    "blackboard": "seq",
-    "nodes": "uid",
-    "mutations": "seq",
-}
+TABLES = ("runs", "nodes", "transitions", "blackboard", "ticks", "mutations")
 PART_BYTES = 4096
 
 
@@ -50,7 +44,6 @@ def record(path: Path, ticks: int = 3000) -> Path:
     executor = Executor(
         tree, leaf_factory=scripted_leaf_factory(tree, Outcomes.from_mapping(OUTCOMES))
     )
-    executor.blackboard.set("count", 0)
     recorder = Recorder(
         path, tree, {"domain": "loop"}, flush_interval=3600, chunk_size=2048, group_events=40
     )
@@ -67,10 +60,7 @@ def recording(tmp_path_factory) -> Path:
 
 def read_model(path: Path, cache_dir: Path) -> dict[str, list[tuple]]:
     with open_runs(path, cache_dir=cache_dir) as db:
-        tables = {
-            table: db.sql(f"SELECT * FROM {table} ORDER BY {key}, ALL")[1]
-            for table, key in TABLES.items()
-        }
+        tables = {table: db.sql(f"SELECT * FROM {table} ORDER BY ALL")[1] for table in TABLES}
         run = db.run()
         tables["states"] = [
             (str(state.status), str(state.blackboard))

@@ -18,10 +18,11 @@ core is read in one part; the tables are the same, row for row, however many par
 
 from __future__ import annotations
 
-import multiprocessing
 import os
+import pickle
+import subprocess
+import sys
 from dataclasses import dataclass
-from multiprocessing.connection import Connection
 from pathlib import Path
 from typing import Any
 
@@ -120,53 +121,60 @@ def scan_part(path: str, part: Part, run_id: str, transitions: Path, folder: Pat
 
 
 class PartScan:
-    """``scan_part`` running in a process of its own (spawned: the caller's DuckDB
-    threads are not forked); ``rows`` waits for it, ``stop`` ends it early."""
+    """``scan_part`` running in a process of its own (``python -m btlog.replay.parts``:
+    not forked, so the caller's DuckDB threads stay its own, and not
+    ``multiprocessing``'s spawn, which imports the caller's main script again);
+    ``rows`` waits for it, ``stop`` ends it early."""
 
     def __init__(self, path: str, *args: Any) -> None:
-        context = multiprocessing.get_context("spawn")
-        self._results, sender = context.Pipe(duplex=False)
-        self._process = context.Process(target=_serve, args=(sender, path, *args), daemon=True)
-        self._process.start()
-        sender.close()
+        package = str(Path(__file__).resolve().parents[2])  # the btlog this one is
+        paths = [package, os.environ.get("PYTHONPATH", "")]
+        environment = {**os.environ, "PYTHONPATH": os.pathsep.join(p for p in paths if p)}
+        self._process = subprocess.Popen(
+            [sys.executable, "-m", "btlog.replay.parts"],
+            stdin=subprocess.PIPE,
+            stdout=subprocess.PIPE,
+            env=environment,
+        )
+        assert self._process.stdin is not None
+        with self._process.stdin as request:
+            request.write(pickle.dumps((path, *args)))
 
     def rows(self) -> PartRows:
         """The part's rows once its scan ends; its error, raised here, if it failed."""
-        try:
-            outcome = self._results.recv()
-        except EOFError:
-            self._process.join()
+        assert self._process.stdout is not None
+        output = self._process.stdout.read()
+        code = self._process.wait()
+        if not output:
             raise RecordingError(
-                f"the process reading a part of the recording ended (exit code "
-                f"{self._process.exitcode})"
-            ) from None
-        self._process.join()
+                f"the process reading a part of the recording ended (exit code {code})"
+            )
+        outcome = pickle.loads(output)  # our own child's answer
         if isinstance(outcome, BaseException):
             raise outcome
         return outcome
 
     def stop(self) -> None:
         """End the scan if it still runs."""
-        if self._process.is_alive():
-            self._process.terminate()
-        self._process.join()
-        self._results.close()
+        if self._process.poll() is None:
+            self._process.kill()
+        self._process.wait()
+        if self._process.stdout is not None:
+            self._process.stdout.close()
 
 
-def _serve(results: Connection, path: str, *args: Any) -> None:
-    """Run ``scan_part(path, *args)`` and send its rows, or its error, to ``results``."""
+def _outcome(path: str, *args: Any) -> Any:
+    """``scan_part(path, *args)``'s rows, or its error as one that survives pickling."""
     try:
-        outcome: Any = scan_part(path, *args)
+        return scan_part(path, *args)
     except RecordingError as error:
-        outcome = error
+        return error
     except (ValueError, TypeError, IndexError) as error:
-        outcome = RecordingError(
+        return RecordingError(
             f"{path}: rows that do not follow the btlog format: {type(error).__name__}: {error}"
         )
     except Exception as error:  # DuckDB's and the OS's errors do not all survive pickling
-        outcome = RuntimeError(one_line(error))
-    results.send(outcome)
-    results.close()
+        return RuntimeError(one_line(error))
 
 
 def merge(first: Collected, others: list[Collected]) -> Collected:
@@ -188,3 +196,15 @@ def merge(first: Collected, others: list[Collected]) -> Collected:
     first.mutations.sort(key=seq_of)
     first.answers.sort(key=seq_of)
     return first
+
+
+def main() -> None:
+    """A part's process: the arguments of ``scan_part`` in, its outcome out (pickled)."""
+    request = pickle.load(sys.stdin.buffer)
+    sys.stdout.buffer.write(pickle.dumps(_outcome(*request)))
+
+
+if __name__ == "__main__":  # run as a script: its classes must pickle as the module's
+    from btlog.replay.parts import main as module_main
+
+    module_main()

@@ -53,7 +53,7 @@ class TransitionsFile:
             path,
             SCHEMA,
             compression="lz4",
-            use_dictionary=["uid", "prev_status", "status"],
+            use_dictionary=False,
             column_encoding={
                 "seq": "DELTA_BINARY_PACKED",
                 "t_ns": "DELTA_BINARY_PACKED",
