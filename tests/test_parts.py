@@ -63,7 +63,7 @@ def read_model(path: Path, cache_dir: Path) -> dict[str, list[tuple]]:
         tables = {table: db.sql(f"SELECT * FROM {table} ORDER BY ALL")[1] for table in TABLES}
         run = db.run()
         tables["states"] = [
-            (str(state.status), str(state.blackboard))
+            (sorted(state.status.items()), str(state.blackboard))
             for moment in ("0.5s", "tick:100", "tick:1501", "end")
             for _tree, state in [run.state_at(moment)]
         ]
