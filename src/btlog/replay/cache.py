@@ -40,7 +40,7 @@ from typing import TYPE_CHECKING, BinaryIO
 
 import btlog
 from btlog.replay.connections import connect
-from btlog.replay.tables import INGEST_VERSION, create_schema, transitions_view
+from btlog.replay.tables import INGEST_VERSION, create_schema, transitions_views
 
 if TYPE_CHECKING:  # ingestion (and pyarrow) is imported to build a cache, not to use one
     from btlog.replay import ingest as ingestion
@@ -273,7 +273,8 @@ def build(path: str, cache: Path, snapshot_every: int) -> ingestion.IngestReport
             stale.unlink(missing_ok=True)
         for number, file in enumerate(files):
             os.replace(parts[number], file)
-        con.execute(transitions_view(report.run_id, [str(file) for file in files]))
+        for statement in transitions_views(report.run_id, [str(file) for file in files]):
+            con.execute(statement)
         con.execute("USE memory")
         con.execute("DETACH cache_file")
         os.replace(temporary, cache)

@@ -42,7 +42,7 @@ from btlog.replay.tables import (
     first_row,
     identifier,
     one_row,
-    transitions_view,
+    transitions_views,
 )
 from btlog.tree.model import Tree
 
@@ -249,7 +249,8 @@ def _load_rows(
             to.transitions.close()
     if files:
         con.execute("DROP TABLE IF EXISTS transitions")
-        con.execute(transitions_view(run_id, [str(file) for file in files]))
+        for statement in transitions_views(run_id, [str(file) for file in files]):
+            con.execute(statement)
     return collected
 
 

@@ -28,13 +28,19 @@ import orjson
 from btlog.events import TreeMutation
 from btlog.record import format as fmt
 from btlog.replay.blocks import STATUS_BY_CODE, event_blocks
+from btlog.replay.tables import TRANSITION_CODES as CODES
 from btlog.replay.tables import insert_arrow
 from btlog.state import RECOVERY_TYPE, RETRY_TYPE, StateProjection
+from btlog.status import Status
 from btlog.tree.model import EXECUTION_KINDS, Tree
 
 if TYPE_CHECKING:  # pyarrow builds the read model; a warm answer reads it without pyarrow
     import pyarrow as pa
 
+
+IDLE, RUNNING, SUCCESS, FAILURE = (
+    int(status) for status in (Status.IDLE, Status.RUNNING, Status.SUCCESS, Status.FAILURE)
+)
 #: Events between two snapshots. ``state_at`` reads one snapshot row and decodes and
 #: folds at most this many events (~2.5 µs each, all told), on top of a fixed ~2.5 ms
 #: (the query, the tree copy). Measured (``bench_replay.py --sweep``, 2M events): median
@@ -198,7 +204,7 @@ def snapshot_rows(
 #: (``max`` over small keys, not ``arg_max`` over blocks x nodes).
 PREFIX = "prefix WHERE true"
 #: The rows before $b0 themselves, for what the latest kinds of change cannot tell.
-PREFIX_ROWS = "transitions WHERE run_id = $run_id AND seq < $b0"
+PREFIX_ROWS = f"{CODES} WHERE run_id = $run_id AND seq < $b0"
 
 
 def _latest(name: str, where: str, partition: str, value: str, before: str = PREFIX) -> str:
@@ -214,7 +220,7 @@ def _latest(name: str, where: str, partition: str, value: str, before: str = PRE
         FROM {before} AND {where} GROUP BY ALL
         UNION ALL
         SELECT (seq // $k + 1) * $k AS b, {partition} AS p, arg_max({value}, seq) AS v
-        FROM transitions WHERE run_id = $run_id AND seq >= $b0 AND seq < $b1 AND {where}
+        FROM {CODES} WHERE run_id = $run_id AND seq >= $b0 AND seq < $b1 AND {where}
         GROUP BY ALL),
     {name} AS (
         SELECT * FROM (
@@ -230,25 +236,29 @@ def _latest(name: str, where: str, partition: str, value: str, before: str = PRE
 #: the result a node returns right after its own halt (the event before it). The halts
 #: are few, so they are looked up in a set of their (seq, uid) (a correlated ``EXISTS``
 #: made DuckDB group every change out of IDLE: 20 s and 1.2 GB at 30M events).
-STARTS_WHERE = """prev_status = 'IDLE' AND NOT (status IN ('SUCCESS', 'FAILURE')
-    AND {{'s': seq - 1, 'u': uid}} IN (SELECT {{'s': seq, 'u': uid}} FROM transitions
-        WHERE run_id = $run_id AND seq < $b1 AND prev_status = 'RUNNING' AND status = 'IDLE'))"""
+STARTS_WHERE = f"""prev_code = {IDLE} AND NOT (code IN ({SUCCESS}, {FAILURE})
+    AND {{{{'s': seq - 1, 'u': uid}}}} IN (SELECT {{{{'s': seq, 'u': uid}}}} FROM {CODES}
+        WHERE run_id = $run_id AND seq < $b1 AND prev_code = {RUNNING} AND code = {IDLE}))"""
 
 #: The snapshot rows: the state before each boundary ``b`` as ``State.to_json`` writes it
 #: (large blackboard values named by seq in ``blackboard_refs``, see ``snapshot_json``).
 SNAPSHOTS_SQL = (
     "WITH bounds AS (SELECT unnest(range($b0 // $k, $b1 // $k + 1)) * $k AS b),\n"
-    "prefix AS (SELECT uid, prev_status, status, max(seq) AS seq, $run_id AS run_id\n"
-    "    FROM transitions WHERE run_id = $run_id AND seq < $b0\n"
-    "    GROUP BY uid, prev_status, status),\n"
+    "prefix AS (SELECT uid, prev_code, code, max(seq) AS seq, $run_id AS run_id\n"
+    f"    FROM {CODES} WHERE run_id = $run_id AND seq < $b0\n"
+    "    GROUP BY uid, prev_code, code),\n"
     + ",\n".join(
         (
-            _latest("status_at", "true", "uid", "enum_code(status)"),
+            _latest("status_at", "true", "uid", "code"),
             _latest("activation_at", STARTS_WHERE, "uid", "seq", PREFIX_ROWS),
-            _latest("failure_at", "status = 'FAILURE'", "uid", "seq"),
+            _latest("failure_at", f"code = {FAILURE}", "uid", "seq"),
             _latest(
-                "leaf_at", "status <> 'IDLE' AND list_contains($execution, uid)", "run_id", "uid"
+                "leaf_at", f"code <> {IDLE} AND list_contains($execution, uid)", "run_id", "uid"
             ),
+            f"""halted_at AS (
+        SELECT seq + 1 AS b, uid AS v FROM {CODES}
+        WHERE run_id = $run_id AND prev_code = {RUNNING} AND code = {IDLE}
+            AND (seq + 1) % $k = 0 AND seq >= $b0 - 1 AND seq < $b1)""",
         )
     )
     + """,
@@ -266,10 +276,6 @@ SNAPSHOTS_SQL = (
               FROM board)
         WHERE least(coalesce(nxt, $n), $b1) // $k > seq // $k),
     scopes AS (SELECT DISTINCT b, scope FROM writes),
-    halted_at AS (
-        SELECT seq + 1 AS b, uid AS v FROM transitions
-        WHERE run_id = $run_id AND prev_status = 'RUNNING' AND status = 'IDLE'
-            AND (seq + 1) % $k = 0 AND seq >= $b0 - 1 AND seq < $b1),
     entries AS (
         SELECT b, scope, json_group_object(key, CASE WHEN big THEN NULL ELSE value END) AS obj
         FROM writes WHERE type <> 'unset' GROUP BY b, scope),
@@ -381,10 +387,10 @@ def _retry_attempts(
     rows = (
         _rows_in_batches(
             con,
-            """SELECT seq, t_ns, tick, uid, enum_code(prev_status), enum_code(status)
-        FROM transitions WHERE run_id = $run_id AND seq < $last
-            AND ((status = 'FAILURE' AND list_contains($children, uid))
-                OR (status <> 'RUNNING' AND list_contains($retries, uid)))
+            f"""SELECT seq, t_ns, tick, uid, prev_code, code
+        FROM {CODES} WHERE run_id = $run_id AND seq < $last
+            AND ((code = {FAILURE} AND list_contains($children, uid))
+                OR (code <> {RUNNING} AND list_contains($retries, uid)))
         ORDER BY seq""",
             {"run_id": run_id, "retries": counted[0], "children": counted[1], "last": last},
         )

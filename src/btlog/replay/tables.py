@@ -19,7 +19,7 @@ if TYPE_CHECKING:
 from btlog.status import STATUS_NAMES
 
 #: The layout of the read model; part of the cache key (bump when a table changes).
-INGEST_VERSION = "6"
+INGEST_VERSION = "7"
 
 SCHEMA = (
     # Status is numbered as BT.CPP numbers it; the ENUM uses the same order.
@@ -49,6 +49,14 @@ SCHEMA = (
         truncated BOOLEAN, warnings JSON, snapshot_every BIGINT, tree JSON,
         ingest_seconds DOUBLE, snapshot_seconds DOUBLE)""",
 )
+#: The view of ``transitions`` with each status as its code (``btlog.status``): what the
+#: snapshots' aggregations read. Over a cache's Parquet files the codes are the files'
+#: own, and a filter on them is one the files' statistics answer; the ENUM's ``CASE``
+#: (``transitions_views``) would be evaluated on every row.
+TRANSITION_CODES = "_transition_codes"
+_CODES_OF_TABLE = f"""CREATE OR REPLACE VIEW {TRANSITION_CODES} AS SELECT run_id, seq, t_ns,
+    tick, uid, enum_code(prev_status)::TINYINT AS prev_code,
+    enum_code(status)::TINYINT AS code FROM transitions"""
 #: The tables users write SQL against.
 PUBLIC_TABLES = ("runs", "nodes", "transitions", "blackboard", "ticks", "mutations")
 INTERNAL_TABLES = ("_mutations", "_answers", "_snapshots", "_ingest")
@@ -56,7 +64,7 @@ INTERNAL_TABLES = ("_mutations", "_answers", "_snapshots", "_ingest")
 
 def create_schema(con: duckdb.DuckDBPyConnection) -> None:
     """Create the ``status`` type and every table in the connection's current catalog."""
-    for statement in SCHEMA:
+    for statement in (*SCHEMA, _CODES_OF_TABLE):
         con.execute(statement)
 
 
@@ -113,15 +121,18 @@ def _status_of_code(column: str) -> str:
     return f"CASE {column} {cases} END"
 
 
-def transitions_view(run_id: str, paths: list[str]) -> str:
-    """The statement making ``transitions`` of the current catalog a view of run
-    ``run_id``'s status changes in the Parquet files ``paths``
-    (``btlog.replay.transitions_file``): the table's columns, the ENUM's statuses."""
-    files = ", ".join(literal(path) for path in paths)
+def transitions_views(run_id: str, paths: list[str]) -> tuple[str, str]:
+    """The statements making ``transitions`` and ``TRANSITION_CODES`` of the current
+    catalog views of run ``run_id``'s status changes in the Parquet files ``paths``
+    (``btlog.replay.transitions_file``): the table's columns, the ENUM's statuses; the
+    codes as the files hold them."""
+    rows = f"FROM read_parquet([{', '.join(literal(path) for path in paths)}])"
     return (
         f"CREATE OR REPLACE VIEW transitions AS SELECT {literal(run_id)} AS run_id, seq, t_ns, "
         f"tick, uid, {_status_of_code('prev_status')} AS prev_status, "
-        f"{_status_of_code('status')} AS status FROM read_parquet([{files}])"
+        f"{_status_of_code('status')} AS status {rows}",
+        f"CREATE OR REPLACE VIEW {TRANSITION_CODES} AS SELECT {literal(run_id)} AS run_id, "
+        f"seq, t_ns, tick, uid, prev_status AS prev_code, status AS code {rows}",
     )
 
 
@@ -144,7 +155,7 @@ def insert_arrow(
 
 def discard_run(con: duckdb.DuckDBPyConnection, run_id: str) -> None:
     """Delete every row of run ``run_id`` (a failed ingestion leaves nothing behind);
-    a view over a file (``transitions_view``) goes with its file."""
+    a view over a file (``transitions_views``) goes with its file."""
     tables = {
         name
         for (name,) in con.execute(

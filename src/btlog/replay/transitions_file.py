@@ -8,7 +8,7 @@ beside the scan), they cost about 4 s of CPU on the other core, and DuckDB reads
 file as fast as its own tables: each row group's min and max of ``seq`` skip the rest
 of the run for a moment's block, and a filter on a status skips the row groups without
 it. So a cache's ``transitions`` is a view over the file beside it
-(``btlog.replay.tables.transitions_view``); the other tables stay DuckDB's.
+(``btlog.replay.tables.transitions_views``); the other tables stay DuckDB's.
 
 Encodings: ``seq``, ``t_ns`` and ``tick`` as deltas (they grow by small steps), ``uid``
 and the statuses as dictionaries, the statuses as their codes (``btlog.status``), the
