@@ -333,26 +333,55 @@ def _summary(data: mmap.mmap | bytes, size: int) -> tuple[int, int] | bool:
 
 
 def chunk_starts(data: mmap.mmap | bytes, size: int) -> list[int]:
-    """The byte offsets of the file's chunks, as its sound summary's chunk indexes list
-    them, in file order (empty without a sound summary, or when an offset does not hold
-    a chunk record)."""
+    """The byte offsets of the file's chunk records, in file order, where a reader of a
+    part of the file may start (``btlog.replay.parts``); empty when the file is to be
+    read whole.
+
+    A summary's CRC tells it was written whole, not that it tells the truth, so its
+    chunk indexes are used only when they list exactly the chunk records that walking
+    the file's records from its start finds (``top_records``: each chunk's own lengths
+    checked), each once and with its length, and that walk reaches the footer without
+    damage: then the records from one offset to the next are those a walk of the whole
+    file meets there, none read twice or skipped (and only chunks before the data end
+    record: what follows it is the summary's). Anything else (no sound summary, an
+    offset into a chunk, past the end or into the summary, one listed twice, a wrong
+    length, damaged framing) is empty: one walk of the whole file."""
     summary = sound_summary(data, size)
     if summary is None:
         return []
+    listed = _chunk_indexes(data, summary)
+    walk, data_end = Walk(""), False
+    found: list[tuple[int, int]] = []
+    for opcode, body, end in top_records(data, size, walk):
+        if opcode == Opcode.DATA_END:  # what follows is the summary's, never a part's
+            data_end = True
+        elif opcode == Opcode.CHUNK and not data_end:
+            found.append((body - HEAD.size, end - body + HEAD.size))
+    if walk.dropped or walk.truncated or not data_end or listed is None:
+        return []
+    if sorted(listed) != found:
+        return []
+    return [offset for offset, _length in found]
+
+
+def _chunk_indexes(
+    data: mmap.mmap | bytes, summary: tuple[int, int]
+) -> list[tuple[int, int]] | None:
+    """``(chunk start, chunk length)`` of each chunk index record of a sound summary, as
+    listed; None when a record overruns the summary or a chunk index is too short."""
     position, stop = summary
-    starts = []
+    listed = []
     while position + HEAD.size <= stop:
         opcode, length = HEAD.unpack_from(data, position)
         body, end = position + HEAD.size, position + HEAD.size + length
-        if end > stop:
-            return []
-        if opcode == Opcode.CHUNK_INDEX and length >= 32:
-            (offset,) = _U64.unpack_from(data, body + 16)
-            if not len(MAGIC) <= offset <= size - HEAD.size or data[offset] != Opcode.CHUNK:
-                return []
-            starts.append(offset)
+        if end > stop or (opcode == Opcode.CHUNK_INDEX and length < 32):
+            return None
+        if opcode == Opcode.CHUNK_INDEX:
+            listed.append(
+                (_U64.unpack_from(data, body + 16)[0], _U64.unpack_from(data, body + 24)[0])
+            )
         position = end
-    return sorted(starts)
+    return listed
 
 
 def _summary_records(
