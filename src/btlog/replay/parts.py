@@ -18,6 +18,7 @@ core is read in one part; the tables are the same, row for row, however many par
 
 from __future__ import annotations
 
+import contextlib
 import os
 import pickle
 import subprocess
@@ -124,30 +125,41 @@ class PartScan:
     """``scan_part`` running in a process of its own (``python -m btlog.replay.parts``:
     not forked, so the caller's DuckDB threads stay its own, and not
     ``multiprocessing``'s spawn, which imports the caller's main script again);
-    ``rows`` waits for it, ``stop`` ends it early."""
+    ``rows`` waits for it, ``stop`` ends it early. What the process prints on stderr (a
+    traceback of its own, if it fails before it can answer) is kept for the error."""
 
-    def __init__(self, path: str, *args: Any) -> None:
+    def __init__(self, path: str, part: Part, *args: Any) -> None:
         package = str(Path(__file__).resolve().parents[2])  # the btlog this one is
         paths = [package, os.environ.get("PYTHONPATH", "")]
         environment = {**os.environ, "PYTHONPATH": os.pathsep.join(p for p in paths if p)}
-        self._process = subprocess.Popen(
-            [sys.executable, "-m", "btlog.replay.parts"],
-            stdin=subprocess.PIPE,
-            stdout=subprocess.PIPE,
-            env=environment,
-        )
-        assert self._process.stdin is not None
-        with self._process.stdin as request:
-            request.write(pickle.dumps((path, *args)))
+        self.path, self.part = path, part
+        request, send = os.pipe()
+        try:
+            self._process = subprocess.Popen(
+                [sys.executable, "-m", "btlog.replay.parts"],
+                stdin=request,
+                stdout=subprocess.PIPE,
+                stderr=subprocess.PIPE,
+                env=environment,
+            )
+        finally:
+            os.close(request)
+        with contextlib.suppress(BrokenPipeError), open(send, "wb", buffering=0) as sending:
+            sending.write(pickle.dumps((path, part, *args)))  # (ended already: rows tells)
 
     def rows(self) -> PartRows:
-        """The part's rows once its scan ends; its error, raised here, if it failed."""
-        assert self._process.stdout is not None
-        output = self._process.stdout.read()
-        code = self._process.wait()
-        if not output:
+        """The part's rows once its scan ends; its error, raised here, if it failed; a
+        ``RecordingError`` naming the file and the part if the process ended without an
+        answer (killed, or failed before it could answer)."""
+        output, errors = self._process.communicate()
+        code = self._process.returncode
+        if code != 0 or not output:
+            last = errors.decode(errors="replace").strip().splitlines()[-1:]
+            said = f": {' '.join(last[0].split())}" if last else ""
             raise RecordingError(
-                f"the process reading a part of the recording ended (exit code {code})"
+                f"{self.path}: the process reading bytes {self.part.start} to "
+                f"{'the end' if self.part.stop is None else self.part.stop} of the recording "
+                f"ended without an answer (exit code {code}){said}"
             )
         outcome = pickle.loads(output)  # our own child's answer
         if isinstance(outcome, BaseException):
@@ -159,12 +171,15 @@ class PartScan:
         if self._process.poll() is None:
             self._process.kill()
         self._process.wait()
-        if self._process.stdout is not None:
-            self._process.stdout.close()
+        for stream in (self._process.stdout, self._process.stderr):
+            if stream is not None:
+                stream.close()
 
 
 def _outcome(path: str, *args: Any) -> Any:
-    """``scan_part(path, *args)``'s rows, or its error as one that survives pickling."""
+    """``scan_part(path, *args)``'s rows, or its error as one that survives pickling: the
+    error itself when it does (a ``RecordingError``, an ``OSError``, DuckDB's: the same
+    error as reading in one process gives), else its message as a ``RuntimeError``."""
     try:
         return scan_part(path, *args)
     except RecordingError as error:
@@ -173,8 +188,12 @@ def _outcome(path: str, *args: Any) -> Any:
         return RecordingError(
             f"{path}: rows that do not follow the btlog format: {type(error).__name__}: {error}"
         )
-    except Exception as error:  # DuckDB's and the OS's errors do not all survive pickling
-        return RuntimeError(one_line(error))
+    except Exception as error:
+        try:
+            pickle.loads(pickle.dumps(error))
+        except Exception:  # not every error survives pickling
+            return RuntimeError(one_line(error))
+        return error
 
 
 def merge(first: Collected, others: list[Collected]) -> Collected:
