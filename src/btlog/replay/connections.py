@@ -73,7 +73,11 @@ def connect(database: str = ":memory:", sandbox: bool = False) -> duckdb.DuckDBP
         "temp_directory": "" if sandbox else _private_temp_directory(),
         "memory_limit": f"{memory_limit() // (1 << 20)}MiB",
     }
-    return duckdb.connect(database, config=config)
+    con = duckdb.connect(database, config=config)
+    # A cache's transitions are Parquet files (``btlog.replay.transitions_file``): their
+    # footers, read once, serve every later query (a story asks hundreds).
+    con.execute("SET parquet_metadata_cache = true")
+    return con
 
 
 def _private_temp_directory() -> str:

@@ -29,7 +29,7 @@ from btlog.events import TreeMutation
 from btlog.record import format as fmt
 from btlog.replay.blocks import STATUS_BY_CODE, event_blocks
 from btlog.replay.tables import TRANSITION_CODES as CODES
-from btlog.replay.tables import insert_arrow
+from btlog.replay.tables import insert_arrow, starts_condition
 from btlog.state import RECOVERY_TYPE, RETRY_TYPE, StateProjection
 from btlog.status import Status
 from btlog.tree.model import EXECUTION_KINDS, Tree
@@ -232,13 +232,8 @@ def _latest(name: str, where: str, partition: str, value: str, before: str = PRE
         WHERE v IS NOT NULL)"""
 
 
-#: A change that starts an activation (``btlog.history.resumes``): out of IDLE, and not
-#: the result a node returns right after its own halt (the event before it). The halts
-#: are few, so they are looked up in a set of their (seq, uid) (a correlated ``EXISTS``
-#: made DuckDB group every change out of IDLE: 20 s and 1.2 GB at 30M events).
-STARTS_WHERE = f"""prev_code = {IDLE} AND NOT (code IN ({SUCCESS}, {FAILURE})
-    AND {{{{'s': seq - 1, 'u': uid}}}} IN (SELECT {{{{'s': seq, 'u': uid}}}} FROM {CODES}
-        WHERE run_id = $run_id AND seq < $b1 AND prev_code = {RUNNING} AND code = {IDLE}))"""
+#: A change that starts an activation (``btlog.history.resumes``).
+STARTS_WHERE = starts_condition(CODES, "h.seq < $b1")
 
 #: The snapshot rows: the state before each boundary ``b`` as ``State.to_json`` writes it
 #: (large blackboard values named by seq in ``blackboard_refs``, see ``snapshot_json``).

@@ -21,6 +21,7 @@ import orjson
 
 from btlog.history import History, Statuses, Transition, TransitionIndex, Uids, Write
 from btlog.replay.moments import RunExtent
+from btlog.replay.tables import TRANSITION_CODES, starts_condition
 from btlog.state import State
 from btlog.status import Status
 from btlog.tree.model import Tree
@@ -53,18 +54,7 @@ FIRST_WINDOW = 1 << 14
 WINDOW_GROWTH = 16
 
 
-_COLUMNS = "seq, t_ns, uid, enum_code(prev_status), enum_code(status)"
-#: The start of an activation (``btlog.history.resumes``), for a row of ``transitions``
-#: in ``lo <= seq < hi``: a change out of IDLE that does not follow, right after, the
-#: node's own halt with its result. The halts are few: they are looked up in a set of
-#: their (seq, uid), not by a correlated ``EXISTS`` (which DuckDB runs by grouping every
-#: change out of IDLE in the range: seconds and a GB over a long run).
-STARTS = (
-    "prev_status = 'IDLE' AND NOT (status IN ('SUCCESS', 'FAILURE') AND "
-    "{{'s': seq - 1, 'u': uid}} IN (SELECT {{'s': h.seq, 'u': h.uid}} FROM {table} h "
-    "WHERE h.run_id = $run_id AND h.seq >= $lo - 1 AND h.seq < $hi "
-    "AND h.prev_status = 'RUNNING' AND h.status = 'IDLE'))"
-)
+_COLUMNS = "seq, t_ns, uid, prev_code, code"
 
 
 def _in_list(values: Collection[int]) -> str:
@@ -72,12 +62,16 @@ def _in_list(values: Collection[int]) -> str:
     return "(" + ", ".join(str(int(v)) for v in sorted(set(values))) + ")"
 
 
+#: Where the halts an activation's start may follow are looked for (``starts_condition``).
+_HALTS = "h.seq >= $lo - 1 AND h.seq < $hi"
+
+
 class SqlHistory(History):
     """``History`` over one run of a ``RunDatabase``."""
 
     def __init__(self, run: StoredRun, in_memory: bool | None = None) -> None:
         self.run = run
-        self._table = f"{run.catalog}.transitions"
+        self._table = f"{run.catalog}.{TRANSITION_CODES}"
         if in_memory is None:
             in_memory = run.extent.events <= IN_MEMORY_EVENTS
         self._index: TransitionIndex | None = None
@@ -117,10 +111,10 @@ class SqlHistory(History):
             return 0 if kind == "count" else []
         where = (
             f"AND seq >= $lo AND seq < $hi AND uid IN {_in_list(uids)} "
-            f"AND enum_code(status) IN {_in_list([int(s) for s in statuses])}"
+            f"AND code IN {_in_list([int(s) for s in statuses])}"
         )
         if starts:
-            where += f" AND {STARTS.format(table=self._table)}"
+            where += f" AND {starts_condition(self._table, _HALTS)}"
         params = {"lo": lo, "hi": hi}
         if kind == "count":
             return int(self._rows(where, "", params, "count(*)")[0][0])
@@ -211,10 +205,10 @@ class SqlHistory(History):
             return super().counts(uids, statuses, lo, hi, starts)
         where = (
             f"AND seq >= $lo AND seq < $hi AND uid IN {_in_list(uids)} "
-            f"AND enum_code(status) IN {_in_list([int(s) for s in statuses])}"
+            f"AND code IN {_in_list([int(s) for s in statuses])}"
         )
         if starts:
-            where += f" AND {STARTS.format(table=self._table)}"
+            where += f" AND {starts_condition(self._table, _HALTS)}"
         found = dict(self._rows(where, "GROUP BY uid", {"lo": lo, "hi": hi}, "uid, count(*)"))
         return {uid: int(found.get(uid, 0)) for uid in uids}
 

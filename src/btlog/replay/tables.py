@@ -16,7 +16,7 @@ import duckdb
 if TYPE_CHECKING:
     import pyarrow as pa
 
-from btlog.status import STATUS_NAMES
+from btlog.status import STATUS_NAMES, Status
 
 #: The layout of the read model; part of the cache key (bump when a table changes).
 INGEST_VERSION = "7"
@@ -57,6 +57,26 @@ TRANSITION_CODES = "_transition_codes"
 _CODES_OF_TABLE = f"""CREATE OR REPLACE VIEW {TRANSITION_CODES} AS SELECT run_id, seq, t_ns,
     tick, uid, enum_code(prev_status)::TINYINT AS prev_code,
     enum_code(status)::TINYINT AS code FROM transitions"""
+
+
+def starts_condition(table: str, halts: str) -> str:
+    """The condition on a row of ``table`` (``TRANSITION_CODES``, qualified or not) that
+    it starts an activation (``btlog.history.resumes``): a change out of IDLE that does
+    not follow, right after, the node's own halt with its result. The halts are few:
+    they are looked up in a set of their (seq, uid), read where ``halts`` (a condition
+    on ``h``) holds (a correlated ``EXISTS`` made DuckDB group every change out of IDLE:
+    20 s and 1.2 GB at 30M events)."""
+    idle, running, success, failure = (
+        int(s) for s in (Status.IDLE, Status.RUNNING, Status.SUCCESS, Status.FAILURE)
+    )
+    return (
+        f"prev_code = {idle} AND NOT (code IN ({success}, {failure}) AND "
+        f"struct_pack(s := seq - 1, u := uid) IN (SELECT struct_pack(s := h.seq, u := h.uid) "
+        f"FROM {table} h WHERE h.run_id = $run_id AND {halts} "
+        f"AND h.prev_code = {running} AND h.code = {idle}))"
+    )
+
+
 #: The tables users write SQL against.
 PUBLIC_TABLES = ("runs", "nodes", "transitions", "blackboard", "ticks", "mutations")
 INTERNAL_TABLES = ("_mutations", "_answers", "_snapshots", "_ingest")
