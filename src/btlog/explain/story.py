@@ -67,6 +67,10 @@ PAGE = 500
 #: Events before each failure of a page that its episode, guard and cause are read
 #: from (``History.read_ahead``: a hint; what lies further back is asked for).
 NEIGHBOURHOOD = 1024
+#: Events at each end of the goal's last run that the subgoals' first start, last
+#: completion and last start are read from at once (``History.read_ahead``; what lies
+#: further in is asked for): three questions a subgoal, answered from memory.
+SUBGOAL_ENDS = 1 << 16
 #: Above this many episodes (or runs of the goal), those that read the same are told once.
 SCREEN = 12
 #: The root's changes per run of the goal read at once (a start, a result, a reset, a
@@ -674,6 +678,10 @@ def story(
     )
     goals = subgoals(tree)
     runs_of = history.counts([n.uid for n in goals], ANY_STATUS, since, now, starts=True)
+    ends = [(since, min(since + SUBGOAL_ENDS, now)), (max(now - SUBGOAL_ENDS, since), now)]
+    history.read_ahead(ends, [n.uid for n in goals])
+    told = [_subgoal(n, since, now, history, runs_of[n.uid]) for n in goals]
+    history.read_ahead([])
     return Story(
         goal=goal_words(tree),
         outcome=outcome,
@@ -682,7 +690,7 @@ def story(
         ticks=state.tick if ticks is None else ticks,
         events=state.seq,
         failures=failures,
-        subgoals=[_subgoal(n, since, now, history, runs_of[n.uid]) for n in goals],
+        subgoals=told,
         runs=runs,
         run_count=run_count,
         run_results=run_results(tree, history, runs, run_count, now),
