@@ -26,7 +26,7 @@ from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
 
 from btlog.record.walk import RecordingError, chunk_starts, mapped, sound_summary
-from btlog.replay import parts
+from btlog.replay import cache, parts
 from tests.cli_support import assert_bad_input, btlog, btlog_command, btlog_environment
 from tests.test_damage import chunks
 from tests.test_parts import record
@@ -34,7 +34,7 @@ from tests.test_parts import record
 PART_BYTES = {"BTLOG_PART_BYTES": "4096"}
 FOOTER = struct.Struct("<BQQQI")  # opcode, length, summary start, offsets start, CRC
 MAGIC_BYTES = 8
-CHUNK_OPCODE, CHUNK_INDEX_OPCODE = 0x06, 0x08
+CHANNEL_OPCODE, CHUNK_OPCODE, CHUNK_INDEX_OPCODE = 0x04, 0x06, 0x08
 QUERY = "SELECT status, count(*), sum(seq), max(seq) FROM transitions GROUP BY ALL ORDER BY ALL"
 Index = tuple[int, int]  # a chunk index's chunk start and chunk length
 
@@ -303,3 +303,48 @@ def test_a_damaged_chunk_in_a_later_part_is_told_as_in_one_part(
     assert str(damaged) in whole.stderr
     assert split.returncode == whole.returncode
     assert split.stdout == whole.stdout and split.stderr == whole.stderr
+
+
+def channel_lie(
+    source: Path, target: Path, topic: bytes, change: Callable[[bytearray, int], None]
+) -> Path:
+    """``source`` whose summary's channel of ``topic`` is changed in place by ``change``
+    (of the file's bytes and the channel record's body offset), its summary CRC computed
+    again: the
+    chunks' own channel records then tell what the summary does not."""
+    data = bytearray(source.read_bytes())
+    footer = len(data) - MAGIC_BYTES - FOOTER.size
+    opcode, length, position, offsets, _crc = FOOTER.unpack_from(data, footer)
+    summary = position
+    while position < footer:
+        record, size = struct.unpack_from("<BQ", data, position)
+        if record == CHANNEL_OPCODE and topic in data[position + 9 : position + 9 + size]:
+            change(data, position + 9)
+        position += 9 + size
+    crc = zlib.crc32(data[summary : footer + FOOTER.size - 4])
+    FOOTER.pack_into(data, footer, opcode, length, summary, offsets, crc)
+    target.write_bytes(bytes(data))
+    return target
+
+
+@pytest.mark.parametrize("lie", ["another id", "another topic"])
+def test_a_summary_without_a_channel_the_chunks_define_is_read_again_in_one_part(
+    recording, truth, tmp_path, monkeypatch, lie
+):
+    def change(data: bytearray, body: int) -> None:
+        if lie == "another id":
+            struct.pack_into("<H", data, body, 0x7777)
+        else:  # the topic's last letter: the chunks' channel record gives the true one
+            topic_end = body + 4 + 4 + len(b"/btlog/events")
+            data[topic_end - 1] ^= 0x20
+
+    hostile = channel_lie(recording, tmp_path / "channels.mcap", b"/btlog/events", change)
+    monkeypatch.setenv("BTLOG_PART_BYTES", PART_BYTES["BTLOG_PART_BYTES"])
+    if len(os.sched_getaffinity(0)) >= 2:
+        assert len(parts.plan(str(hostile))) >= 2  # tried in parts
+    result = answer(hostile, tmp_path / "cache", env=PART_BYTES)
+    assert result.returncode == 0, result.stderr
+    assert result.stdout == truth.stdout and result.stderr == ""
+    (entry,) = [e for e in cache.entries(tmp_path / "cache") if "snapshots" not in e.path.name]
+    assert len(cache.transitions_paths(entry.path)) == 1  # read again, in one part
+    assert [p.name for p in (tmp_path / "cache").iterdir() if p.name.startswith(".")] == []

@@ -100,6 +100,9 @@ class Walk:
     chunk: int | None = None
     #: True while the records walked are the summary's (after the data end record)
     summary: bool = False
+    #: True while the records walked are a sound summary's schemas and channels, given
+    #: first (``records``)
+    priming: bool = False
 
     def drop(self, offset: int, length: int, reason: str) -> None:
         """Note unreadable bytes, with the one warning every reader prints for them."""
@@ -246,10 +249,12 @@ def records(
                 primed = True
                 if opcode == Opcode.HEADER:
                     yield opcode, buffer, body, end
+                walk.priming = True
                 for found in _summary_records(data, summary or (0, 0)):
                     if found[0] == Opcode.CHANNEL:
                         known.add(_U16.unpack_from(data, found[1])[0])
                     yield found[0], data, found[1], found[2]
+                walk.priming = False
                 if opcode == Opcode.HEADER:
                     continue
             in_summary = opcode == Opcode.DATA_END and state is not False

@@ -256,7 +256,8 @@ def build(path: str, cache: Path, snapshot_every: int) -> ingestion.IngestReport
     parts: dict[int, Path] = {}
 
     def part_file(number: int) -> Path:
-        parts[number] = _temporary(transitions_path(cache, number))
+        if number not in parts:  # (the same file when a read in parts is read again)
+            parts[number] = _temporary(transitions_path(cache, number))
         return parts[number]
 
     con = connect()
@@ -268,10 +269,12 @@ def build(path: str, cache: Path, snapshot_every: int) -> ingestion.IngestReport
         report = ingestion.load_tables(
             con, path, snapshot_every=snapshot_every, transitions_files=part_file
         )
-        files = [transitions_path(cache, number) for number in sorted(parts)]
+        # the parts read (a read in parts read again in one part removed the others' files)
+        numbers = [number for number in sorted(parts) if parts[number].exists()]
+        files = [transitions_path(cache, number) for number in numbers]
         for stale in set(transitions_paths(cache)) - set(files):  # a build in more parts
             stale.unlink(missing_ok=True)
-        for number, file in enumerate(files):
+        for number, file in zip(numbers, files, strict=True):
             os.replace(parts[number], file)
         for statement in transitions_views(report.run_id, [str(file) for file in files]):
             con.execute(statement)

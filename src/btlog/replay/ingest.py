@@ -25,6 +25,7 @@ import orjson
 import btlog
 from btlog.record import format as fmt
 from btlog.record.reader import RecordingError, decode_metadata, read_metadata, tree_of
+from btlog.record.walk import MAGIC
 from btlog.replay.load import Destination, Loader, load_other_messages
 from btlog.replay.run_tables import (
     Extent,
@@ -196,7 +197,28 @@ def _load_rows(
     """Walk the file, loading its bulk rows as it goes; returns what else it found.
     With ``transitions_files`` (the file of each part's status changes), a long
     recording is read in parts, each in a process of its own (``btlog.replay.parts``),
-    and ``transitions`` becomes a view of the files."""
+    and ``transitions`` becomes a view of the files; parts that were not read as one
+    read would read them (``parts.agree``) are read again, in one part."""
+    if transitions_files is None:
+        return _read_rows(con, run_id, name, transitions_files)
+    from btlog.replay import parts
+
+    try:
+        return _read_rows(con, run_id, name, transitions_files)
+    except parts.Disagree:
+        discard_run(con, run_id)
+        return _read_rows(con, run_id, name, transitions_files, whole=True)
+
+
+def _read_rows(
+    con: duckdb.DuckDBPyConnection,
+    run_id: str,
+    name: str,
+    transitions_files: Callable[[int], Path] | None,
+    whole: bool = False,
+) -> Collected:
+    """``_load_rows``, in the parts ``parts.plan`` gives (one if ``whole``); ``Disagree``
+    when the parts' reads do not agree (the files of the parts but the first removed)."""
     to = Destination(run_id)
     first, scans, files = McapScan(name, lambda batch: None), [], []
     try:
@@ -205,7 +227,7 @@ def _load_rows(
                 from btlog.replay import parts
                 from btlog.replay.transitions_file import TransitionsFile
 
-                plan = parts.plan(name)
+                plan = [parts.Part(len(MAGIC), None)] if whole else parts.plan(name)
                 files = [transitions_files(number) for number in range(len(plan))]
                 scans = [
                     parts.PartScan(name, part, run_id, files[n], Path(folder) / f"part-{n}")
@@ -231,6 +253,10 @@ def _load_rows(
             except BaseException:
                 loader.close()
                 raise
+            if others and not parts.agree([collected, *(rows.collected for rows in others)]):
+                for file in files[1:]:
+                    file.unlink(missing_ok=True)
+                raise parts.Disagree(name)
             if others:
                 for rows in others:
                     for table, file in (("ticks", rows.ticks), ("blackboard", rows.blackboard)):

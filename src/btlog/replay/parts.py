@@ -196,6 +196,19 @@ def _outcome(path: str, *args: Any) -> Any:
         return error
 
 
+class Disagree(Exception):
+    """The parts of a recording were not read as one read of the whole file reads them
+    (``agree``): it is to be read again in one part."""
+
+
+def agree(collected: list[Collected]) -> bool:
+    """Whether the scans of consecutive parts read their records as one scan of the whole
+    file would: each part knows the channels of the summary only, so none but the last
+    may meet a channel record that changes them (a hostile summary, CRC and all, that
+    leaves out a channel the chunks define: the parts after it would skip its messages)."""
+    return not any(scanned.redefined for scanned in collected[:-1])
+
+
 def merge(first: Collected, others: list[Collected]) -> Collected:
     """What the scans of consecutive parts collected, as one scan of the whole file
     would have."""

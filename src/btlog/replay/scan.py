@@ -116,6 +116,9 @@ class Collected:
     answers: list[dict] = field(default_factory=list)
     other_events: list[bytes] = field(default_factory=list)
     other_ticks: list[bytes] = field(default_factory=list)
+    #: a channel record of the data section gave a channel another topic than the
+    #: summary's (or one it does not have): what a part after it reads depends on it
+    redefined: bool = False
 
 
 class McapScan:
@@ -245,6 +248,8 @@ class McapScan:
         return True
 
     def _channel(self, channel: Channel) -> None:
+        if not self.out.walk.priming and self.topics.get(channel.id) != channel.topic:
+            self.out.redefined = True
         self.topics[channel.id] = channel.topic
         if channel.topic == fmt.EVENTS_TOPIC:
             self.events_channel = _CHANNEL_ID.pack(channel.id)
