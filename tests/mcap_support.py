@@ -20,7 +20,7 @@ from btlog.schema import schema_text
 from btlog.status import Status
 from btlog.tree.loader import load_tree_text
 
-Message = tuple[str, int, bytes]
+Message = tuple[str | int, int, bytes]
 #: A tree that loops forever over two actions (each RUNNING for one tick).
 LOOP = """<root BTCPP_format="4"><BehaviorTree ID="MainTree">
   <KeepRunningUntilFailure><Sequence name="work">
@@ -81,14 +81,16 @@ def write_messages(
     messages: Iterable[Message],
     compression: CompressionType = CompressionType.ZSTD,
     chunked: bool = True,
+    chunk_size: int = 1 << 20,
 ) -> Path:
-    """An MCAP file with btlog's channels holding ``(topic, log_time, bytes)`` messages;
-    the events and ticks channels are JSON ones when ``metadata`` says schema version 2
-    (or 1), binary columns otherwise, as btlog writes them. Not ``chunked``: every
-    record at the top level (no CRC guards them)."""
+    """An MCAP file with btlog's channels holding ``(topic, log_time, bytes)`` messages
+    (a topic given as a number: a message of that channel id, which the file does not
+    define); the events and ticks channels are JSON ones when ``metadata`` says schema
+    version 2 (or 1), binary columns otherwise, as btlog writes them. Not ``chunked``:
+    every record at the top level (no CRC guards them)."""
     json_rows = metadata.get("schema_version") in ("1", "2")
     with open(target, "wb") as file:
-        writer = Writer(file, compression=compression, use_chunking=chunked)
+        writer = Writer(file, compression=compression, use_chunking=chunked, chunk_size=chunk_size)
         writer.start()
         channels = {}
         for topic, (name, schema, encoding) in fmt.TOPICS.items():
@@ -101,7 +103,8 @@ def write_messages(
             channels[topic] = writer.register_channel(topic, encoding, schema_id)
         writer.add_metadata(fmt.METADATA_NAME, metadata)
         for topic, log_time, data in messages:
-            writer.add_message(channels[topic], log_time, data, log_time)
+            channel = topic if isinstance(topic, int) else channels[topic]
+            writer.add_message(channel, log_time, data, log_time)
         writer.finish()
     return target
 

@@ -25,9 +25,11 @@ import pytest
 from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
 
+from btlog.record import iter_messages
 from btlog.record.walk import RecordingError, chunk_starts, mapped, sound_summary
 from btlog.replay import cache, parts
 from tests.cli_support import assert_bad_input, btlog, btlog_command, btlog_environment
+from tests.mcap_support import stored_metadata, write_messages
 from tests.test_damage import chunks
 from tests.test_parts import record
 
@@ -348,3 +350,27 @@ def test_a_summary_without_a_channel_the_chunks_define_is_read_again_in_one_part
     (entry,) = [e for e in cache.entries(tmp_path / "cache") if "snapshots" not in e.path.name]
     assert len(cache.transitions_paths(entry.path)) == 1  # read again, in one part
     assert [p.name for p in (tmp_path / "cache").iterdir() if p.name.startswith(".")] == []
+
+
+def test_messages_of_undefined_channels_in_every_part_are_told_once(
+    recording, tmp_path, monkeypatch
+):
+    def with_strays():
+        for number, (topic, log_time, data) in enumerate(iter_messages(recording)):
+            yield topic, log_time, data
+            if number % 20 == 0:
+                yield 999, log_time, b"stray"
+
+    strays = write_messages(
+        tmp_path / "strays.mcap", stored_metadata(recording), with_strays(), chunk_size=2048
+    )
+    monkeypatch.setenv("BTLOG_PART_BYTES", PART_BYTES["BTLOG_PART_BYTES"])
+    if len(os.sched_getaffinity(0)) >= 2:
+        assert len(parts.plan(str(strays))) >= 2
+    split = answer(strays, tmp_path / "parts", env=PART_BYTES)
+    monkeypatch.delenv("BTLOG_PART_BYTES")
+    whole = answer(strays, tmp_path / "whole")
+    assert whole.returncode == 0 and whole.stdout == split.stdout, whole.stderr
+    (told,) = whole.stderr.splitlines()
+    assert "messages of channels the file never defines skipped" in told
+    assert split.stderr == whole.stderr

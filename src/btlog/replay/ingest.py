@@ -35,7 +35,7 @@ from btlog.replay.run_tables import (
     seq_space,
     short_run_id,
 )
-from btlog.replay.scan import Collected, McapScan
+from btlog.replay.scan import Collected, McapScan, warnings_of
 from btlog.replay.snapshots import DEFAULT_SNAPSHOT_EVERY, build_snapshots, snapshot_interval
 from btlog.replay.tables import (
     INGEST_VERSION,
@@ -342,7 +342,7 @@ def _counts(con: duckdb.DuckDBPyConnection, run_id: str) -> tuple[int, int, int]
 
 
 def _warnings(name: str, collected: Collected, extent: Extent) -> list[str]:
-    warnings = list(collected.walk.warnings)
+    warnings = warnings_of(collected)
     if extent.events and extent.last_seq != extent.events - 1:
         warnings.append(
             f"{name}: events are not gap-free: {extent.events} events up to seq {extent.last_seq}"

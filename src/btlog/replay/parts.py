@@ -221,6 +221,7 @@ def merge(first: Collected, others: list[Collected]) -> Collected:
         first.answers.extend(other.answers)
         first.other_events.extend(other.other_events)
         first.other_ticks.extend(other.other_ticks)
+        first.unknown_channel += other.unknown_channel
         first.walk.warnings.extend(other.walk.warnings)
         first.walk.dropped.extend(other.walk.dropped)
         first.walk.truncated = other.walk.truncated  # the last part's end is the file's

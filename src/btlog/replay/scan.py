@@ -116,9 +116,23 @@ class Collected:
     answers: list[dict] = field(default_factory=list)
     other_events: list[bytes] = field(default_factory=list)
     other_ticks: list[bytes] = field(default_factory=list)
+    #: messages of channels the file never defines, skipped (opened chunks: ``records``;
+    #: told last by ``warnings_of``, once for the parts of a file read in parts)
+    unknown_channel: int = 0
     #: a channel record of the data section gave a channel another topic than the
     #: summary's (or one it does not have): what a part after it reads depends on it
     redefined: bool = False
+
+
+def warnings_of(collected: Collected) -> list[str]:
+    """What a scan noticed, as warnings: the walk's, then the messages skipped."""
+    warnings = list(collected.walk.warnings)
+    if collected.unknown_channel:
+        warnings.append(
+            f"{collected.walk.path}: {collected.unknown_channel} messages of channels the "
+            "file never defines skipped"
+        )
+    return warnings
 
 
 class McapScan:
@@ -141,19 +155,12 @@ class McapScan:
         self.ticks_channel: bytes | None = None
         self.batch = RowBatch()
         self.on_batch = on_batch
-        #: messages of channels the file never defines (opened chunks: ``records``)
-        self.unknown_channel = 0
 
     def run(self) -> Collected:
         """Scan the whole file; the last batch is handed over too."""
         with mapped(self.path) as (data, size):
             walked = records(data, size, self.out.walk, True, self.start, self.stop)
             self._scan(walked)
-        if self.unknown_channel:
-            self.out.walk.warnings.append(
-                f"{self.path}: {self.unknown_channel} messages of channels the file never "
-                "defines skipped"
-            )
         if self.batch:
             self.on_batch(self.batch)
             self.batch = RowBatch()
@@ -259,7 +266,7 @@ class McapScan:
     def _message(self, buffer: bytes, body: int, end: int) -> None:
         topic = self.topics.get(_CHANNEL_ID.unpack_from(buffer, body)[0])
         if topic is None:
-            self.unknown_channel += 1
+            self.out.unknown_channel += 1
             return
         payload = bytes(buffer[body + MESSAGE_HEAD : end])
         out = self.out
