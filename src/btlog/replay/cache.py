@@ -20,7 +20,9 @@ is built under a temporary name holding the builder's pid and moved into place w
 complete; the leftovers of a killed build (its pid gone) are removed on the next open.
 Using a cache touches its mtime, and after a build the least recently used caches are
 evicted until the folder is under its size cap (``$BTLOG_CACHE_MAX_MB``, default 2048).
-A cache holds the tables; the snapshots, which only states need, are built a segment at
+A cache holds the tables, its status changes in Parquet files beside it
+(``NAME.transitions.N.parquet``, one per part of the recording read: ``build``), counted,
+evicted and cleared with it; the snapshots, which only states need, are built a segment at
 a time (``btlog.replay.snapshots.SEGMENT_BLOCKS`` snapshots) on the first state asked for
 in the segment's range, each into a file beside it (``NAME.N.snapshots.duckdb``): a
 first answer about one moment of a long run does not wait for the whole run's.
