@@ -271,13 +271,21 @@ def test_a_part_failing_before_it_answers_is_one_line_naming_the_file(recording,
     assert "\n" not in message and "Traceback" not in message
 
 
-def damaged_copy(source: Path, target: Path, where: Callable[[int, int], int]) -> Path:
-    """``source`` with one byte of its last chunk but one flipped: at ``where(start, length)``."""
+def damaged_copy(source: Path, target: Path, chunk: int, where: Callable[[int, int], int]):
+    """``source`` with one byte of its chunk at byte ``chunk`` flipped: at
+    ``where(start, length)`` of the chunk."""
     data = bytearray(source.read_bytes())
-    start, length = chunks(bytes(data))[-2]
+    start, length = next((s, n) for s, n in chunks(bytes(data)) if s == chunk)
     data[where(start, length)] ^= 0x5A
     target.write_bytes(bytes(data))
     return target
+
+
+def _planned(path: Path, monkeypatch) -> list[parts.Part]:
+    """The parts ``path`` is read in with ``PART_BYTES``."""
+    with monkeypatch.context() as patched:
+        patched.setenv("BTLOG_PART_BYTES", PART_BYTES["BTLOG_PART_BYTES"])
+        return parts.plan(str(path))
 
 
 @pytest.mark.parametrize(
@@ -288,15 +296,17 @@ def damaged_copy(source: Path, target: Path, where: Callable[[int, int], int]) -
     ],
     ids=["records", "length"],
 )
+@pytest.mark.parametrize("which", ["last but one", "first of the last part"])
 def test_a_damaged_chunk_in_a_later_part_is_told_as_in_one_part(
-    recording, tmp_path, monkeypatch, where, in_parts
+    recording, tmp_path, monkeypatch, where, in_parts, which
 ):
-    damaged = damaged_copy(recording, tmp_path / "damaged.mcap", where)
-    with monkeypatch.context() as patched:
-        patched.setenv("BTLOG_PART_BYTES", PART_BYTES["BTLOG_PART_BYTES"])
-        planned = parts.plan(str(damaged))
+    last_part = _planned(recording, monkeypatch)[-1].start
+    offsets = [start for start, _length in chunks(recording.read_bytes())]
+    chunk = last_part if which != "last but one" and last_part in offsets else offsets[-2]
+    damaged = damaged_copy(recording, tmp_path / "damaged.mcap", chunk, where)
+    planned = _planned(damaged, monkeypatch)
     if in_parts and len(os.sched_getaffinity(0)) >= 2:
-        assert len(planned) >= 2 and planned[-1].start < chunks(damaged.read_bytes())[-2][0]
+        assert len(planned) >= 2 and planned[-1].start == last_part <= chunk
     elif not in_parts:
         assert planned == [parts.Part(MAGIC_BYTES, None)]
     whole = answer(damaged, tmp_path / "whole")
