@@ -58,9 +58,15 @@ def recording(tmp_path_factory) -> Path:
     return record(tmp_path_factory.mktemp("parts") / "loop.mcap")
 
 
-def read_model(path: Path, cache_dir: Path) -> dict[str, list[tuple]]:
-    with open_runs(path, cache_dir=cache_dir) as db:
+def read_model(path: Path, cache_dir: Path | None) -> dict[str, list[tuple]]:
+    """Every public table's rows, their column types, and the states at a few moments
+    (``cache_dir`` None: read into memory, with ``transitions`` a DuckDB table)."""
+    with open_runs(path, cache=cache_dir is not None, cache_dir=cache_dir) as db:
         tables = {table: db.sql(f"SELECT * FROM {table} ORDER BY ALL")[1] for table in TABLES}
+        tables["types"] = db.sql(
+            "SELECT typeof(prev_status), typeof(status), typeof(seq), typeof(uid) "
+            "FROM transitions LIMIT 1"
+        )[1]
         run = db.run()
         tables["states"] = [
             (sorted(state.status.items()), str(state.blackboard))
@@ -74,6 +80,8 @@ def test_a_recording_read_in_parts_gives_the_read_model_of_one_read(
     recording, tmp_path, monkeypatch
 ):
     whole = read_model(recording, tmp_path / "whole")
+    assert whole == read_model(recording, None)  # the Parquet view gives the table's rows
+    assert whole["types"][0][0].startswith("ENUM(")
     assert len(cache.transitions_paths(cache.entries(tmp_path / "whole")[0].path)) == 1
     monkeypatch.setenv("BTLOG_PART_BYTES", str(PART_BYTES))
     planned = parts.plan(str(recording))
