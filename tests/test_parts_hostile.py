@@ -6,9 +6,12 @@ the truth: here a real recording's chunk indexes are rewritten to lie (an offset
 chunk at a byte that happens to be a chunk opcode, past the end, into the summary,
 listed twice, a wrong chunk length) and the footer's summary CRC is computed again, so
 the lie is trusted as far as a CRC goes. Such a file must be read in one part, with the
-rows and warnings of the true file. A part's process that is killed or fails is one line
-naming the file (exit 2), leaving nothing behind in the cache folder; a damaged chunk in
-a later part is told as reading in one part tells it.
+rows and warnings of the true file. So must a summary that leaves out (or renames) a
+channel the chunks define: a part knows the summary's channels only, so the file is read
+again in one part. A part's process that is killed or fails is one line naming the file
+(exit 2), leaving nothing behind in the cache folder; a damaged chunk in a later part,
+and messages of channels the file never defines, are told as reading in one part tells
+them.
 """
 
 from __future__ import annotations
@@ -203,13 +206,16 @@ def test_any_lie_about_chunk_starts_gives_the_true_starts_or_none(recording, lie
     assert starts in ([], true_starts)
 
 
-def test_a_killed_part_is_one_line_and_leaves_nothing_behind(recording, tmp_path):
+@pytest.mark.parametrize(
+    "command", [("sql", QUERY), ("ask", "--at", "end", "What are you doing?")], ids=["sql", "ask"]
+)
+def test_a_killed_part_is_one_line_and_leaves_nothing_behind(recording, tmp_path, command):
     import subprocess
 
     for attempt in range(5):
         root = tmp_path / f"cache-{attempt}"
         process = subprocess.Popen(
-            btlog_command("sql", recording, QUERY, "--cache-dir", root),
+            btlog_command(command[0], recording, *command[1:], "--cache-dir", root),
             env=btlog_environment(PART_BYTES),
             stdout=subprocess.PIPE,
             stderr=subprocess.PIPE,
