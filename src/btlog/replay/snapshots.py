@@ -29,7 +29,7 @@ from btlog.events import TreeMutation
 from btlog.record import format as fmt
 from btlog.replay.blocks import STATUS_BY_CODE, event_blocks
 from btlog.replay.tables import TRANSITION_CODES as CODES
-from btlog.replay.tables import insert_arrow, starts_condition
+from btlog.replay.tables import halts_query, insert_arrow, starts_condition
 from btlog.state import RECOVERY_TYPE, RETRY_TYPE, StateProjection
 from btlog.status import Status
 from btlog.tree.model import EXECUTION_KINDS, Tree
@@ -232,8 +232,9 @@ def _latest(name: str, where: str, partition: str, value: str, before: str = PRE
         WHERE v IS NOT NULL)"""
 
 
-#: A change that starts an activation (``btlog.history.resumes``).
-STARTS_WHERE = starts_condition(CODES, "h.seq < $b1")
+#: A change that starts an activation (``btlog.history.resumes``), its halts read once
+#: (the CTE ``halts``) for the run before the segment and the segment's own rows.
+STARTS_WHERE = starts_condition("FROM halts")
 
 #: The snapshot rows: the state before each boundary ``b`` as ``State.to_json`` writes it
 #: (large blackboard values named by seq in ``blackboard_refs``, see ``snapshot_json``).
@@ -242,6 +243,7 @@ SNAPSHOTS_SQL = (
     "prefix AS (SELECT uid, prev_code, code, max(seq) AS seq, $run_id AS run_id\n"
     f"    FROM {CODES} WHERE run_id = $run_id AND seq < $b0\n"
     "    GROUP BY uid, prev_code, code),\n"
+    f"halts AS MATERIALIZED ({halts_query(CODES, 'h.seq < $b1')}),\n"
     + ",\n".join(
         (
             _latest("status_at", "true", "uid", "code"),

@@ -21,7 +21,7 @@ import orjson
 
 from btlog.history import History, Statuses, Transition, TransitionIndex, Uids, Write
 from btlog.replay.moments import RunExtent
-from btlog.replay.tables import TRANSITION_CODES, starts_condition
+from btlog.replay.tables import TRANSITION_CODES, halts_query, starts_condition
 from btlog.state import State
 from btlog.status import Status
 from btlog.tree.model import Tree
@@ -114,7 +114,7 @@ class SqlHistory(History):
             f"AND code IN {_in_list([int(s) for s in statuses])}"
         )
         if starts:
-            where += f" AND {starts_condition(self._table, _HALTS)}"
+            where += f" AND {starts_condition(halts_query(self._table, _HALTS))}"
         params = {"lo": lo, "hi": hi}
         if kind == "count":
             return int(self._rows(where, "", params, "count(*)")[0][0])
@@ -208,7 +208,7 @@ class SqlHistory(History):
             f"AND code IN {_in_list([int(s) for s in statuses])}"
         )
         if starts:
-            where += f" AND {starts_condition(self._table, _HALTS)}"
+            where += f" AND {starts_condition(halts_query(self._table, _HALTS))}"
         found = dict(self._rows(where, "GROUP BY uid", {"lo": lo, "hi": hi}, "uid, count(*)"))
         return {uid: int(found.get(uid, 0)) for uid in uids}
 

@@ -59,21 +59,28 @@ _CODES_OF_TABLE = f"""CREATE OR REPLACE VIEW {TRANSITION_CODES} AS SELECT run_id
     enum_code(status)::TINYINT AS code FROM transitions"""
 
 
-def starts_condition(table: str, halts: str) -> str:
-    """The condition on a row of ``table`` (``TRANSITION_CODES``, qualified or not) that
-    it starts an activation (``btlog.history.resumes``): a change out of IDLE that does
-    not follow, right after, the node's own halt with its result. The halts are few:
-    they are looked up in a set of their (seq, uid), read where ``halts`` (a condition
-    on ``h``) holds (a correlated ``EXISTS`` made DuckDB group every change out of IDLE:
-    20 s and 1.2 GB at 30M events)."""
-    idle, running, success, failure = (
-        int(s) for s in (Status.IDLE, Status.RUNNING, Status.SUCCESS, Status.FAILURE)
+def halts_query(table: str, where: str) -> str:
+    """The query of the (seq, uid) keys of the halts (RUNNING to IDLE) among the rows of
+    ``table`` (``TRANSITION_CODES``, qualified or not; alias ``h``) where ``where``
+    holds: what ``starts_condition`` looks a change up in."""
+    running, idle = int(Status.RUNNING), int(Status.IDLE)
+    return (
+        f"SELECT struct_pack(s := h.seq, u := h.uid) FROM {table} h WHERE h.run_id = $run_id "
+        f"AND {where} AND h.prev_code = {running} AND h.code = {idle}"
     )
+
+
+def starts_condition(halts: str) -> str:
+    """The condition on a row of ``TRANSITION_CODES`` that it starts an activation
+    (``btlog.history.resumes``): a change out of IDLE that does not follow, right after,
+    the node's own halt with its result. The halts are few: they are looked up in the
+    set of their (seq, uid) that the query ``halts`` gives (``halts_query``; a
+    correlated ``EXISTS`` made DuckDB group every change out of IDLE: 20 s and 1.2 GB at
+    30M events)."""
+    idle, success, failure = (int(s) for s in (Status.IDLE, Status.SUCCESS, Status.FAILURE))
     return (
         f"prev_code = {idle} AND NOT (code IN ({success}, {failure}) AND "
-        f"struct_pack(s := seq - 1, u := uid) IN (SELECT struct_pack(s := h.seq, u := h.uid) "
-        f"FROM {table} h WHERE h.run_id = $run_id AND {halts} "
-        f"AND h.prev_code = {running} AND h.code = {idle}))"
+        f"struct_pack(s := seq - 1, u := uid) IN ({halts}))"
     )
 
 
