@@ -101,6 +101,22 @@ def test_damaged_framing_is_resynchronised_on_the_next_chunk(recording, tmp_path
     assert read.events[-1] == log.events[-1]
 
 
+def test_a_message_index_whose_length_lies_is_skipped_not_the_chunk_after_it(recording, tmp_path):
+    """No CRC guards the records between chunks: a message index whose length spans the
+    next chunk exactly had the walk skip that chunk without a word of it."""
+    path, log = recording
+    data = bytearray(path.read_bytes())
+    (second, second_length), (third, third_length) = chunks(bytes(data))[1:3]
+    index = second + second_length  # the message indexes of the second chunk follow it
+    assert data[index] == 0x07
+    struct.pack_into("<Q", data, index + 1, third + third_length - index - 9)
+    broken = tmp_path / "index.mcap"
+    broken.write_bytes(bytes(data))
+    read = open_recording(broken)
+    assert any(f"damaged data at byte {index}" in w for w in read.warnings), read.warnings
+    assert read.events == log.events, "every chunk is read"
+
+
 def test_the_cli_warns_and_answers_from_the_intact_chunks(recording, tmp_path):
     path, _log = recording
     offset, length = chunks(path.read_bytes())[1]

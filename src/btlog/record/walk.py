@@ -458,8 +458,14 @@ def parse(opcode: int, buffer: Any, body: int, end: int) -> Any:
 
 
 def _framed(opcode: int, data: mmap.mmap | bytes, body: int, end: int) -> bool:
-    """False when a chunk's own lengths disagree with its record length (a damaged
-    length would otherwise send the walk into the middle of the next record)."""
+    """False when a chunk's or a message index's own lengths disagree with its record
+    length (a damaged length would otherwise send the walk into the middle of the next
+    record, or past a whole chunk: no CRC guards the records between chunks)."""
+    if opcode == Opcode.MESSAGE_INDEX:  # channel id, then (time, offset) pairs
+        if end - body < 6:
+            return False
+        (pairs,) = _U32.unpack_from(data, body + 2)
+        return pairs % 16 == 0 and body + 6 + pairs == end
     if opcode != Opcode.CHUNK:
         return True
     try:
