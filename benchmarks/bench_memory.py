@@ -77,6 +77,8 @@ def measure(folder: Path, value_mib: float, ticks: int, env: dict[str, str]) -> 
     )
     segments = sorted(cache_dir.glob(newest.name.replace(".duckdb", ".*.snapshots.duckdb")))
     assert segments, f"no snapshots beside {newest}"
+    # the status changes: NAME.transitions.N.parquet beside NAME.duckdb (none before them)
+    parquet = sorted(cache_dir.glob(newest.name.replace(".duckdb", ".transitions.*.parquet")))
     import duckdb
 
     with duckdb.connect(str(newest), read_only=True) as con:
@@ -93,7 +95,8 @@ def measure(folder: Path, value_mib: float, ticks: int, env: dict[str, str]) -> 
         "first": (first, first_rss),
         "second": (second, second_rss),
         "ask": (ask, ask_rss),
-        "cache_bytes": newest.stat().st_size + sum(p.stat().st_size for p in segments),
+        "cache_bytes": sum(p.stat().st_size for p in [newest, *segments, *parquet]),
+        "parquet_bytes": sum(p.stat().st_size for p in parquet),
         "state_bytes": state_bytes,
     }
 
@@ -113,7 +116,8 @@ def report(label: str, figures: dict) -> None:
         print(f"  {name[key]:<18} {seconds:6.1f} s   peak RSS {rss / 1e6:8.0f} MB")
     print(
         f"  cache {figures['cache_bytes'] / 1e6:.1f} MB = "
-        f"{figures['cache_bytes'] / max(events, 1):.1f} bytes/event; snapshot states "
+        f"{figures['cache_bytes'] / max(events, 1):.1f} bytes/event (of which transitions "
+        f"Parquet {figures['parquet_bytes'] / 1e6:.1f} MB); snapshot states "
         f"{figures['state_bytes'] / 1e6:.2f} MB in all"
     )
 
