@@ -70,7 +70,7 @@ NEIGHBOURHOOD = 1024
 #: Events at each end of the goal's last run that the subgoals' first start, last
 #: completion and last start are read from at once (``History.read_ahead``; what lies
 #: further in is asked for): three questions a subgoal, answered from memory.
-SUBGOAL_ENDS = 1 << 16
+SUBGOAL_ENDS = 1 << 12
 #: Above this many episodes (or runs of the goal), those that read the same are told once.
 SCREEN = 12
 #: The root's changes per run of the goal read at once (a start, a result, a reset, a
