@@ -45,8 +45,11 @@ none wrong.
 from __future__ import annotations
 
 import itertools
+from array import array
 from collections.abc import Iterable, Mapping, Sequence
 from dataclasses import dataclass
+from io import BytesIO
+from typing import BinaryIO
 
 from btlog.sources.builder import SourceError
 from btlog.status import FAILURE, IDLE, RUNNING, SUCCESS, Status
@@ -99,6 +102,9 @@ SILENT_RESETS = 10
 MARGIN = 2
 #: At most this many readings are followed at once; more, and the log is refused.
 MAX_READINGS = 1024
+#: The readings' common choices are looked for once this many entries (at least, and
+#: twice as many as after the last look) are not yet decided.
+COMMIT_EVERY = 4096
 
 
 @dataclass(frozen=True, slots=True)
@@ -130,7 +136,8 @@ class _Path:
 
 def _differ(a: _Path | None, b: _Path | None) -> list[tuple[int, int, int]]:
     """Where two readings of the same entries give an entry to different nodes:
-    ``(entry index, node in a, node in b)``."""
+    ``(entry index, node in a, node in b)``. Every reading has a ``_Path`` for each
+    entry of a shared name, so the two are walked in step, down to their common part."""
     found = []
     while a is not b and a is not None and b is not None:
         if a.uid != b.uid:
@@ -148,15 +155,76 @@ def logged_names(node: Node) -> set[str]:
     return names
 
 
-def match_names(entries: Sequence[Entry], tree: Tree, where: str) -> list[int]:
+def match_names(
+    entries: Sequence[Entry], tree: Tree, where: str, every: int = COMMIT_EVERY
+) -> list[int]:
     """The uid of each entry (see the module docstring); ``SourceError`` naming the file
-    when a name is not in the tree, or when shared names cannot be told apart."""
+    when a name is not in the tree, or when shared names cannot be told apart. ``every``:
+    as for ``match_names_to``."""
+    out = BytesIO()
+    match_names_to(entries, tree, where, out, every)
+    uids = array("q")
+    uids.frombytes(out.getvalue())
+    return uids.tolist()
+
+
+def match_names_to(
+    entries: Iterable[Entry], tree: Tree, where: str, out: BinaryIO, every: int = COMMIT_EVERY
+) -> int:
+    """``match_names`` streamed: ``entries`` is read in passes (two to three; a list, or
+    an iterable that reads the log anew each time), and the uids are written to ``out``
+    (from its start, as ``array("q")`` bytes) as soon as every reading still followed
+    agrees on them (looked for once ``every`` entries are undecided), so memory grows
+    with the log's ambiguity, not its length. Returns the most entries held at once
+    (undecided)."""
     groups = name_groups(tree)
-    check_names((e.name for e in entries), groups, where)
-    shared = {e.name for e in entries if len(groups[e.name]) > 1}
+    shared: set[str] = set()
+    initial: dict[int, int] = {}  # a unique name's node: its previous status at first
+    resets = completions = 0
+    for entry in entries:
+        candidates = groups.get(entry.name)
+        if candidates is None:
+            check_names((entry.name,), groups, where)
+            continue
+        if len(candidates) > 1:
+            shared.add(entry.name)
+        elif candidates[0] not in initial:
+            initial[candidates[0]] = int(entry.prev)
+        resets += entry.status == IDLE
+        completions += entry.status in (SUCCESS, FAILURE)
+    # a log that leaves out resets to IDLE (Nav2's bt_log_idle_transitions false):
+    # a completed node's next entry starts from IDLE, and completing nodes may keep
+    # completed children
+    silent_resets = completions > 0 and resets * SILENT_RESETS < completions
+    out.seek(0)
+    out.truncate()
     if not shared:
-        return [groups[e.name][0] for e in entries]
-    return _Matcher(entries, tree, groups, shared, where).run()
+        sink = _Sink(out)
+        for entry in entries:
+            sink.add(groups[entry.name][0])
+        sink.flush()
+        return 0
+    matcher = _Matcher(entries, tree, groups, shared, where, initial, silent_resets, every)
+    matcher.run(out)
+    return matcher.most_held
+
+
+class _Sink:
+    """Uids written to a binary file in blocks, as ``array("q")`` bytes."""
+
+    def __init__(self, out: BinaryIO) -> None:
+        self.out, self.block = out, array("q")
+
+    def add(self, uid: int) -> None:
+        """One more uid."""
+        self.block.append(uid)
+        if len(self.block) >= 65536:
+            self.flush()
+
+    def flush(self) -> None:
+        """Write the uids held."""
+        self.out.write(self.block.tobytes())
+        del self.block[:]
 
 
 def name_groups(tree: Tree) -> dict[str, list[int]]:
@@ -181,15 +249,23 @@ class _Matcher:
     nodes and their parents (the *watched* nodes) that *owe* a change (a child left IDLE
     or completed while they were not RUNNING: they are being ticked, so they change
     before any node outside their subtree does, within the tick). Readings that reach
-    the same state are merged, keeping the best (``_merge``)."""
+    the same state are merged, keeping the best (``_merge``).
+
+    The entries are read as they come (``entries`` is read once a pass); those not yet
+    decided are held (``held``, from entry ``base`` on). Every so often the choices all
+    readings share (their common ``_Path``, ``decided``) are written out and let go:
+    no later step can change them, and readings differ only after them."""
 
     def __init__(
         self,
-        entries: Sequence[Entry],
+        entries: Iterable[Entry],
         tree: Tree,
         groups: dict[str, list[int]],
         shared: set[str],
         where: str,
+        initial: Mapping[int, int],
+        silent_resets: bool,
+        every: int,
     ) -> None:
         self.entries, self.groups, self.where = entries, groups, where
         self.parent = {n.uid: (n.parent.uid if n.parent else 0) for n in tree}
@@ -228,19 +304,15 @@ class _Matcher:
         # nodes of unique names: their status is the same in every reading; the log
         # says what it was at its start
         self.initial: dict[int, int] = {n.uid: int(IDLE) for n in tree}
-        seen: set[int] = set()
-        for entry in entries:
-            (uid, *more) = groups[entry.name]
-            if not more and uid not in seen:
-                seen.add(uid)
-                self.initial[uid] = int(entry.prev)
+        self.initial.update(initial)
         self.status = dict(self.initial)
-        # a log that leaves out resets to IDLE (Nav2's bt_log_idle_transitions false):
-        # a completed node's next entry starts from IDLE, and completing nodes may keep
-        # completed children
-        resets = sum(1 for e in entries if e.status == IDLE)
-        completions = sum(1 for e in entries if e.status in (SUCCESS, FAILURE))
-        self.silent_resets = completions > 0 and resets * SILENT_RESETS < completions
+        self.silent_resets = silent_resets
+        self.held: list[Entry] = []
+        self.base = 0
+        self.decided: _Path | None = None
+        self.most_held = 0
+        self.every = every
+        self.sink: _Sink | None = None
 
     # -- one step -------------------------------------------------------------------------
     def _of(self, uid: int, statuses: Sequence[int]) -> int:
@@ -333,8 +405,8 @@ class _Matcher:
         return [(cost, (tuple(statuses), owing))]
 
     def _prune(
-        self, readings: dict[tuple, tuple[int, _Path | None, frozenset[int]]], entry: Entry
-    ) -> dict[tuple, tuple[int, _Path | None, frozenset[int]]]:
+        self, readings: dict[tuple, tuple[int, _Path | None, frozenset[str]]], entry: Entry
+    ) -> dict[tuple, tuple[int, _Path | None, frozenset[str]]]:
         """The readings worth following: those at most ``MARGIN`` structure violations
         behind the best (and none with more chain violations). More than
         ``MAX_READINGS`` left: the log is refused (the best could not be told from the
@@ -350,8 +422,9 @@ class _Matcher:
             )
         return kept
 
-    def _doubts(self, a: _Path | None, b: _Path | None) -> tuple[set[int], bool]:
-        """The entries two equally good readings disagree on, and whether ``a`` is the
+    def _doubts(self, a: _Path | None, b: _Path | None) -> tuple[set[str], bool]:
+        """The names of the entries two equally good readings disagree on (all held:
+        readings differ only after their decided part), and whether ``a`` is the
         one to keep. Two readings that make the same transitions in each tick, in another
         order, leave no doubt (a control and its child both leaving IDLE: which came
         first changes no state between ticks); the kept one has BT.CPP's order: a
@@ -361,13 +434,19 @@ class _Matcher:
         differ = _differ(a, b)
         if not differ:
             return set(), False
-        group = self.entries
-        mine = sorted((group[i].group, x, group[i].prev, group[i].status) for i, x, _ in differ)
-        theirs = sorted((group[i].group, y, group[i].prev, group[i].status) for i, _, y in differ)
+        held, base = self.held, self.base
+        mine = sorted(
+            (held[i - base].group, x, held[i - base].prev, held[i - base].status)
+            for i, x, _ in differ
+        )
+        theirs = sorted(
+            (held[i - base].group, y, held[i - base].prev, held[i - base].status)
+            for i, _, y in differ
+        )
         if mine != theirs:
-            return {i for i, _x, _y in differ}, False
+            return {held[i - base].name for i, _x, _y in differ}, False
         first, x, y = differ[-1]
-        entry = self.entries[first]
+        entry = held[first - base]
         if entry.prev == IDLE and entry.status == RUNNING:  # a control sets RUNNING first
             return set(), self.first[x] < self.first[y]
         # a node completes or resets after its children (and a Parallel's in order)
@@ -375,19 +454,20 @@ class _Matcher:
             return set(), self.first[x] > self.first[y]
         return set(), self.first[x] < self.first[y]
 
-    def run(self) -> list[int]:
-        """The uid of each entry; ``SourceError`` when the best reading is not unique.
+    def run(self, out: BinaryIO) -> None:
+        """Write the uid of each entry to ``out`` (truncated first, ``array("q")``
+        bytes); ``SourceError`` when the best reading is not unique.
         A log whose nodes of unique names all start IDLE is first read as starting
         with the tree (every node IDLE); if no reading of it then fits the chain, or the
         log begins mid-run, the nodes of shared names start *unknown* (what their first
         entry says, each non-IDLE start counted)."""
         readings = None
         if all(status == IDLE for status in self.initial.values()):
-            readings = self._read(int(IDLE))
+            readings = self._read(int(IDLE), out)
             if min(cost for cost, _path, _unclear in readings.values()) >= _CHAIN:
                 readings = None
         if readings is None:
-            readings = self._read(UNKNOWN)
+            readings = self._read(UNKNOWN, out)
         best = min(cost for cost, _path, _unclear in readings.values())
         ends = [(path, unclear) for cost, path, unclear in readings.values() if cost == best]
         path, unclear = ends[0]
@@ -397,21 +477,52 @@ class _Matcher:
             doubts |= other_unclear | differ
             path = other if better else path
         if doubts:
-            names = sorted({self.entries[i].name for i in doubts})
-            listed = ", ".join(repr(n) for n in names)
+            listed = ", ".join(repr(n) for n in sorted(doubts))
             raise SourceError(
                 f"{self.where}: the log has no uids, and its entries named {listed} fit "
                 "several nodes of that name equally well (the tree's structure cannot "
                 "tell them apart)"
             )
-        fixed = [self.groups[e.name][0] for e in self.entries]
-        while path is not None:
-            fixed[path.index] = path.uid
-            path = path.tail
-        return fixed
+        self.most_held = max(self.most_held, len(self.held))
+        self._decide(path, len(self.held))
+        assert self.sink is not None
+        self.sink.flush()
 
-    def _read(self, start: int) -> dict[tuple, tuple[int, _Path | None, frozenset[int]]]:
-        """The best readings of the log, the nodes of shared names starting ``start``."""
+    def _decide(self, path: _Path | None, count: int) -> None:
+        """Write the uids of the first ``count`` held entries, ``path`` being the
+        readings' common choice for the last of them that has one, and let them go."""
+        assert self.sink is not None
+        chosen: dict[int, int] = {}
+        node = path
+        while node is not None and node is not self.decided:
+            chosen[node.index] = node.uid
+            node = node.tail
+        for index, entry in enumerate(self.held[:count], self.base):
+            self.sink.add(chosen.get(index, self.groups[entry.name][0]))
+        del self.held[:count]
+        self.base += count
+        if path is not None:
+            path.tail = None  # nothing behind the decided part is looked at again
+            self.decided = path
+
+    def _commit(self, readings: dict[tuple, tuple[int, _Path | None, frozenset[str]]]) -> None:
+        """Decide the choices all ``readings`` share (their paths' common node)."""
+        paths = {id(p): p for _cost, p, _unclear in readings.values()}
+        while len(paths) > 1:
+            paths = {id(p.tail): p.tail for p in paths.values() if p is not None}
+        (common,) = paths.values()
+        if common is not None and common is not self.decided:
+            self._decide(common, common.index + 1 - self.base)
+
+    def _read(
+        self, start: int, out: BinaryIO
+    ) -> dict[tuple, tuple[int, _Path | None, frozenset[str]]]:
+        """The best readings of the log, the nodes of shared names starting ``start``
+        (the uids decided on the way written to ``out``, from its start)."""
+        out.seek(0)
+        out.truncate()
+        self.sink = _Sink(out)
+        self.held, self.base, self.decided = [], 0, None
         self.status = dict(self.initial)
         statuses = [start] * len(self.a_index)
         assumed = 0
@@ -419,12 +530,20 @@ class _Matcher:
             if status != IDLE and uid not in self.a_index:
                 assumed += self._pin(statuses, self.parent[uid], int(RUNNING))
         # state -> (cost, reading, entry indexes found ambiguous)
-        readings: dict[tuple, tuple[int, _Path | None, frozenset[int]]] = {
+        readings: dict[tuple, tuple[int, _Path | None, frozenset[str]]] = {
             (tuple(statuses), 0): (assumed, None, frozenset())
         }
-        group = self.entries[0].group if self.entries else 0
+        group: int | None = None
+        look = self.every
         for index, entry in enumerate(self.entries):
-            if entry.group != group:  # a new tick: every change owed is a violation
+            if len(self.held) >= look:
+                self.most_held = max(self.most_held, len(self.held))
+                self._commit(readings)
+                look = max(self.every, 2 * len(self.held))
+            self.held.append(entry)
+            if group is None:
+                group = entry.group
+            elif entry.group != group:  # a new tick: every change owed is a violation
                 group = entry.group
                 if any(owing for _statuses, owing in readings):
                     readings = self._tick_ends(readings)
@@ -435,7 +554,7 @@ class _Matcher:
                 if not watched and not any(owing for _statuses, owing in readings):
                     self.status[uid] = int(entry.status)
                     continue
-            following: dict[tuple, tuple[int, _Path | None, frozenset[int]]] = {}
+            following: dict[tuple, tuple[int, _Path | None, frozenset[str]]] = {}
             for state, (cost, path, unclear) in readings.items():
                 for uid in candidates:
                     chosen = path if len(candidates) == 1 else _Path(index, uid, path)
@@ -449,10 +568,10 @@ class _Matcher:
         return readings
 
     def _tick_ends(
-        self, readings: dict[tuple, tuple[int, _Path | None, frozenset[int]]]
-    ) -> dict[tuple, tuple[int, _Path | None, frozenset[int]]]:
+        self, readings: dict[tuple, tuple[int, _Path | None, frozenset[str]]]
+    ) -> dict[tuple, tuple[int, _Path | None, frozenset[str]]]:
         """The readings once a tick is over: each change still owed is a violation."""
-        following: dict[tuple, tuple[int, _Path | None, frozenset[int]]] = {}
+        following: dict[tuple, tuple[int, _Path | None, frozenset[str]]] = {}
         for (statuses, owing), (cost, path, unclear) in readings.items():
             total = cost + owing.bit_count() * _STRUCTURE
             self._merge(following, (statuses, 0), total, path, unclear)
@@ -460,11 +579,11 @@ class _Matcher:
 
     def _merge(
         self,
-        readings: dict[tuple, tuple[int, _Path | None, frozenset[int]]],
+        readings: dict[tuple, tuple[int, _Path | None, frozenset[str]]],
         state: tuple,
         cost: int,
         path: _Path | None,
-        unclear: frozenset[int],
+        unclear: frozenset[str],
     ) -> None:
         """Keep the better of two readings that reach the same state; two equally good
         ones that differ are a doubt (``_doubts``) from then on."""

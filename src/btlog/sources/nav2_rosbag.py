@@ -26,6 +26,7 @@ import collections
 import itertools
 import os
 import sys
+import tempfile
 from array import array
 from collections.abc import Iterable, Iterator
 from dataclasses import dataclass, field
@@ -47,7 +48,7 @@ from btlog.sources.name_matching import (
     Entry,
     check_names,
     logged_names,
-    match_names,
+    match_names_to,
     name_groups,
 )
 from btlog.sources.rosbag2 import Bag, open_bag
@@ -85,9 +86,9 @@ INCOMPLETE = (
 @dataclass(frozen=True, slots=True)
 class LogEntry:
     """One BehaviorTreeStatusChange: absolute time, node name, uid (None if the bag's
-    message type has none) and statuses. The bag is read in passes, not held (only a
-    name-only log whose names the tree shares is held, as ``Entry``s, for
-    ``match_names``)."""
+    message type has none) and statuses. The bag is read in passes, not held (a
+    name-only log whose names the tree shares is read by ``match_names_to`` in passes
+    of its own, which hold only the entries it has not decided yet)."""
 
     t_ns: int
     name: str
@@ -277,19 +278,41 @@ def check_uids(pairs: Iterable[tuple[int, str]], tree: Tree, where: str) -> None
 
 
 #: How a pass gives each entry its uid: by the entry's own uid (None), by name (each
-#: unique in the tree: the name's nodes), or ``match_names``' uid of each entry in order.
-Uids = dict[str, list[int]] | array | None
+#: unique in the tree: the name's nodes), or ``match_names_to``'s uid of each entry in
+#: order, in a file (``array("q")`` bytes).
+Uids = dict[str, list[int]] | Path | None
+#: Uids read back from their file this many at a time.
+UID_BLOCK = 1 << 16
 
 
-def _name_uids(bag: Bag, log: BagLog, tree: Tree) -> Uids:
+class _Named:
+    """The log's entries as ``match_names_to`` reads them, decoded anew each pass."""
+
+    def __init__(self, bag: Bag) -> None:
+        self.bag = bag
+
+    def __iter__(self) -> Iterator[Entry]:
+        return (Entry(e.name, e.prev, e.status, e.message) for e in _log_entries(self.bag))
+
+
+def _name_uids(bag: Bag, log: BagLog, tree: Tree, folder: Path) -> Uids:
     """How a name-only log's entries map to the tree: by name when each is unique in the
-    tree; else by ``match_names`` over every entry, held for it (as ``Entry``s)."""
+    tree; else by ``match_names_to``, the uids written to a file in ``folder``."""
     groups = name_groups(tree)
     check_names(log.names, groups, log.file)
     if all(len(groups[name]) == 1 for name in log.names):
         return groups
-    named = [Entry(e.name, e.prev, e.status, e.message) for e in _log_entries(bag)]
-    return array("q", match_names(named, tree, log.file))
+    path = folder / "uids"
+    with open(path, "wb") as out:
+        match_names_to(_Named(bag), tree, log.file, out)
+    return path
+
+
+def _read_uids(path: Path) -> Iterator[int]:
+    """The uids of a file of ``array("q")`` bytes, read a block at a time."""
+    with open(path, "rb") as stream:
+        while block := stream.read(UID_BLOCK * 8):
+            yield from array("q", block)
 
 
 def _with_uids(bag: Bag, uids: Uids) -> Iterator[tuple[LogEntry, int]]:
@@ -299,7 +322,7 @@ def _with_uids(bag: Bag, uids: Uids) -> Iterator[tuple[LogEntry, int]]:
         return ((e, e.uid or 0) for e in entries)
     if isinstance(uids, dict):
         return ((e, uids[e.name][0]) for e in entries)
-    return zip(entries, uids, strict=False)
+    return zip(entries, _read_uids(uids), strict=False)
 
 
 def import_bag(
@@ -314,7 +337,7 @@ def import_bag(
     for one goal, else ``OUT-goalN.mcap`` beside it. The bag is read in passes (its tree
     XML, then the log to check it and split the goals, then each goal's entries into its
     recording), so memory does not grow with the log."""
-    with open_bag(path) as bag:
+    with open_bag(path) as bag, tempfile.TemporaryDirectory(prefix="btlog-") as folder:
         _check_topic(bag)
         opened = len(bag.warnings)
         tree: Tree | None = None
@@ -337,7 +360,7 @@ def import_bag(
             check_uids(log.pairs, tree, log.file)
         else:
             matched_by = "name"
-            uids = _name_uids(bag, log, tree)
+            uids = _name_uids(bag, log, tree, Path(folder))
             splitter = GoalSplitter(tree.root.uid)
             for entry, uid in _with_uids(bag, uids):
                 splitter.add(entry.t_ns, uid, entry.prev, entry.status)
