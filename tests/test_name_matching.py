@@ -2,7 +2,7 @@
 tree by its structure (``btlog.sources.name_matching``): Nav2's default trees, whose
 RecoveryNodes share their actions' names, import exactly; a log that begins mid-run
 imports with its first state inferred; what no structure can tell apart is refused,
-naming the names.
+naming the names; a long log is decided as it is read, in bounded memory (issue 27).
 
 The bags are what Nav2 Humble records: SQLite storage, no message definitions, one
 ``/behavior_tree_log`` message per tick while the tree runs
@@ -11,7 +11,11 @@ The bags are what Nav2 Humble records: SQLite storage, no message definitions, o
 from __future__ import annotations
 
 import json
+import tracemalloc
+from array import array
 from collections import Counter
+from collections.abc import Iterator
+from io import BytesIO
 from pathlib import Path
 
 import pytest
@@ -22,13 +26,18 @@ from btlog.executor.behavior import NodeExecutionError
 from btlog.record.reader import Recording, open_recording
 from btlog.runner import RunConfig, execute
 from btlog.sources.builder import SourceError
-from btlog.sources.name_matching import Entry, match_names
+from btlog.sources.name_matching import COMMIT_EVERY, Entry, match_names, match_names_to
 from btlog.state import StateProjection
 from btlog.status import IDLE, RUNNING
 from tests.cli_support import assert_bad_input, btlog
 from tests.oracle.random_trees import generate
 from tests.rosbag2_support import HUMBLE, NAV2_LOG, write_sqlite_bag
 from tests.test_nav2_rosbag import NAV2, nav2_messages, record, transitions
+
+#: Larger than any log's entry count: the matcher never decides before the log's end,
+#: as it read every log before issue 27 (the whole list held).
+NEVER = 10**9
+TREE_NAME = "navigate_to_pose.xml"
 
 DEFINITIONS = {NAV2_LOG: HUMBLE}
 
@@ -213,3 +222,124 @@ def test_an_ancestor_the_log_never_names_was_running_from_its_first_entry(tmp_pa
     story = btlog("explain", str(tmp_path / "no-root.mcap"))
     assert "not started" not in story.stdout.splitlines()[0], story.stdout
     assert f"Note: {root.description!r}: never in the log" in story.stdout
+
+
+@settings(
+    max_examples=12,
+    deadline=None,
+    derandomize=True,
+    database=None,
+    suppress_health_check=[HealthCheck.too_slow, HealthCheck.function_scoped_fixture],
+)
+@given(seed=st.integers(0, 100_000), late=st.sampled_from([0, 3]))
+def test_deciding_as_the_log_is_read_changes_no_reading_and_no_refusal(tmp_path, seed, late):
+    """The anonymous random trees again (readings and refusals both), each read deciding
+    the readings' common choices as early as it can (every entry or two) and never
+    (the whole log held, as before issue 27): the same uids, or the same refusal, naming
+    the same names."""
+    run = _anonymous_run(seed, tmp_path)
+    for node in run.tree:
+        node.name = node.type
+    ticks = sorted({e.tick for e in run.transitions})
+    types = {node.uid: node.type for node in run.tree}
+    entries = [
+        Entry(types[e.uid], e.prev, e.status, e.tick)
+        for e in run.transitions
+        if e.tick >= ticks[min(late, len(ticks) - 1)]
+    ]
+
+    def read(every: int) -> list[int] | str:
+        try:
+            return match_names(entries, run.tree, "log", every)
+        except SourceError as error:
+            return str(error)
+
+    whole = read(NEVER)
+    assert read(1) == whole and read(2) == whole
+
+
+def _long_navigation(folder: Path, seconds: float) -> Recording:
+    """Nav2's navigate_to_pose: FollowPath fails once, then follows the path for
+    ``seconds`` while the RateController replans at 1 Hz (about 21 changes a second)."""
+    outcomes = {
+        "default": {"status": "SUCCESS", "duration": 0},
+        "nodes": {
+            "GlobalUpdatedGoal": "FAILURE",
+            "GoalUpdated": "FAILURE",
+            "IsGoalNearby": "FAILURE",
+            "FollowPath": [
+                {"status": "FAILURE", "duration": 2},
+                {"status": "SUCCESS", "duration": seconds},
+            ],
+        },
+    }
+    path = NAV2 / TREE_NAME
+    return record(folder, f"long{seconds:.0f}", path, outcomes=outcomes, max_ticks=10**6)
+
+
+def test_a_long_log_is_decided_as_it_is_read_in_bounded_memory(tmp_path: Path) -> None:
+    """Issue 27: the readings of a long Nav2 log agree on all but its last entries, so
+    the matcher writes the uids out as it reads and holds only the undecided entries
+    (and their choices): as many for a log four times as long, and a few times
+    ``every``. The uids are the run's, and those of the whole log held."""
+    held = []
+    for seconds in (300, 1200):
+        run = _long_navigation(tmp_path, seconds)
+        names = {node.uid: node.description for node in run.tree}
+        entries = [Entry(names[e.uid], e.prev, e.status, e.tick) for e in run.transitions]
+        truth = [e.uid for e in run.transitions]
+        assert len(entries) > 20 * seconds
+        out = BytesIO()
+        held.append(match_names_to(entries, run.tree, "log", out, every=16))
+        assert array("q", out.getvalue()).tolist() == truth
+        assert match_names(entries, run.tree, "log", NEVER) == truth
+    assert held[0] == held[1] <= 32, held
+
+
+def test_a_long_humble_bag_imports_exactly(tmp_path: Path) -> None:
+    """The same through ``btlog import`` of a Humble bag (uids in a temporary file,
+    read back for each pass): more entries than the matcher holds before it decides."""
+    run = _long_navigation(tmp_path, 600)
+    assert len(run.transitions) > 3 * COMMIT_EVERY
+    write_sqlite_bag(tmp_path / "bag", nav2_messages([run], uids=False), DEFINITIONS)
+    path = NAV2 / "navigate_to_pose.xml"
+    result = btlog("import", str(tmp_path / "bag"), "--tree", str(path), "-o", "long.mcap",
+                   cwd=tmp_path)  # fmt: skip
+    assert result.returncode == 0, result.stderr
+    imported = transitions(open_recording(tmp_path / "long.mcap"))  # its end never sent
+    assert imported == transitions(run)[: len(imported)]
+    assert len(imported) > len(run.transitions) - 100  # the last tick: never sent
+
+
+class _Replayed:
+    """A run's entries as a name-only log gives them, made anew each pass (as a bag's
+    are decoded anew), none held."""
+
+    def __init__(self, run: Recording) -> None:
+        self.changes = run.transitions
+        self.names = {node.uid: node.description for node in run.tree}
+
+    def __iter__(self) -> Iterator[Entry]:
+        names = self.names
+        return (Entry(names[e.uid], e.prev, e.status, e.tick) for e in self.changes)
+
+
+def test_matching_a_longer_log_takes_no_more_memory(tmp_path: Path) -> None:
+    """Issue 27: the matcher's peak of Python allocations while it reads a name-only log
+    (entries made as read, uids to a file) is no higher for a log four times as long;
+    holding every entry for it took ~2 MB more here (0.69 MB, then 2.69 MB)."""
+    peaks = []
+    for seconds in (300, 1200):
+        run = _long_navigation(tmp_path, seconds)
+        log = _Replayed(run)
+        with open(tmp_path / f"uids{seconds}", "w+b") as out:
+            tracemalloc.start()
+            try:
+                match_names_to(log, run.tree, "log", out)
+                _now, peak = tracemalloc.get_traced_memory()
+            finally:
+                tracemalloc.stop()
+            out.seek(0)
+            assert array("q", out.read()).tolist() == [e.uid for e in run.transitions]
+        peaks.append(peak)
+    assert peaks[1] - peaks[0] < 300_000, peaks

@@ -36,6 +36,12 @@ another order (then BT.CPP's order is kept: the earlier entry to the node first 
 tree); otherwise the match is refused, naming the names whose entries could not be
 told apart. More than ``MAX_READINGS`` readings alive at once are refused too.
 
+The log is read as it comes (``match_names_to``: a pass for its names, then one or two
+readings), and a choice is written out and let go as soon as every reading still
+followed makes it (their common ``_Path``): later entries cannot change it, and two
+readings can differ only after it, so memory grows with the log's ambiguity, not its
+length.
+
 Tested on Nav2's default trees exported as Humble bags (exact), and on random BT.CPP 4
 trees whose every node is unnamed, the worst case (``tests/test_name_matching.py``): of
 300, 195 read exactly, 7 with two same-tick transitions in another order, 98 refused,
@@ -218,7 +224,7 @@ class _Sink:
     def add(self, uid: int) -> None:
         """One more uid."""
         self.block.append(uid)
-        if len(self.block) >= 65536:
+        if len(self.block) >= 8192:
             self.flush()
 
     def flush(self) -> None:
