@@ -170,3 +170,18 @@ def test_a_cache_whose_transitions_file_is_gone_is_built_again(recording, tmp_pa
     again = btlog(*question, "--cache-dir", str(root))
     assert again.returncode == 0 and again.stdout == first.stdout, again.stderr
     assert list(root.glob("*.parquet"))
+
+
+def test_the_summary_counts_the_messages_that_decide_the_parts(recording, tmp_path):
+    from mcap.reader import make_reader
+
+    from btlog.record.walk import mapped, summary_message_count
+
+    with open(recording, "rb") as file:
+        messages = sum(1 for _ in make_reader(file).iter_messages())
+    with mapped(recording) as (data, size):
+        assert summary_message_count(data, size) == messages > 1000
+    cut = tmp_path / "cut.mcap"
+    cut.write_bytes(recording.read_bytes()[:-100])
+    with mapped(cut) as (data, size):
+        assert summary_message_count(data, size) is None  # no sound summary: no hint

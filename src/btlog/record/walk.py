@@ -369,6 +369,24 @@ def chunk_starts(data: mmap.mmap | bytes, size: int) -> list[int]:
     return [offset for offset, _length in found]
 
 
+def summary_message_count(data: mmap.mmap | bytes, size: int) -> int | None:
+    """The message count a sound summary's statistics record gives (None without one):
+    a hint of the work of reading the file, never a fact about its content."""
+    summary = sound_summary(data, size)
+    if summary is None:
+        return None
+    position, stop = summary
+    while position + HEAD.size <= stop:
+        opcode, length = HEAD.unpack_from(data, position)
+        body = position + HEAD.size
+        if body + length > stop:
+            return None
+        if opcode == Opcode.STATISTICS and length >= 8:
+            return int(_U64.unpack_from(data, body)[0])
+        position = body + length
+    return None
+
+
 def _chunk_indexes(
     data: mmap.mmap | bytes, summary: tuple[int, int]
 ) -> list[tuple[int, int]] | None:

@@ -29,7 +29,7 @@ from typing import Any
 
 from btlog.errors import one_line
 from btlog.record.reader import seq_of
-from btlog.record.walk import MAGIC, RecordingError, chunk_starts, mapped
+from btlog.record.walk import MAGIC, RecordingError, chunk_starts, mapped, summary_message_count
 from btlog.replay.connections import connect
 from btlog.replay.load import Destination, Loader
 from btlog.replay.scan import Collected, McapScan
@@ -38,6 +38,10 @@ from btlog.replay.transitions_file import TransitionsFile
 
 #: Bytes of a recording below which one process reads it (a process takes ~0.5 s to start).
 MIN_PART_BYTES = 48 << 20
+#: Messages of a recording below which one process reads it: the cost of reading is
+#: mostly per message (a few microseconds of Python each), so a run of small ticks
+#: (a message each) is worth parts well below ``MIN_PART_BYTES``.
+MIN_PART_MESSAGES = 250_000
 #: The most parts: each process holds its own batches and DuckDB (a few hundred MB).
 MAX_PARTS = 4
 
@@ -52,18 +56,22 @@ class Part:
 
 def plan(path: str) -> list[Part]:
     """The parts to read ``path`` in: one per core (at most ``MAX_PARTS``), each about
-    ``MIN_PART_BYTES`` (``$BTLOG_PART_BYTES``) or more, cut where a chunk starts; one
-    part for a file whose summary does not list its chunks."""
+    ``MIN_PART_BYTES`` (``$BTLOG_PART_BYTES``) or ``MIN_PART_MESSAGES`` (as the summary
+    counts them) or more, cut where a chunk starts; one part for a file whose summary
+    does not list its chunks."""
     size = os.path.getsize(path)
     try:
         part_bytes = max(int(os.environ.get("BTLOG_PART_BYTES", MIN_PART_BYTES)), 1)
     except ValueError:
         part_bytes = MIN_PART_BYTES
-    count = min(_cores(), MAX_PARTS, size // part_bytes)
     whole = [Part(len(MAGIC), None)]
-    if count < 2:
+    if _cores() < 2:
         return whole
     with mapped(path) as (data, mapped_size):
+        messages = summary_message_count(data, mapped_size) or 0
+        count = min(_cores(), MAX_PARTS, max(size // part_bytes, messages // MIN_PART_MESSAGES))
+        if count < 2:
+            return whole
         starts = chunk_starts(data, mapped_size)
     cuts: list[int] = []
     for number in range(1, count):
