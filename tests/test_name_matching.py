@@ -161,14 +161,19 @@ def _anonymous_run(seed: int, folder: Path) -> Recording:
     return run
 
 
-@settings(
-    max_examples=12,
-    deadline=None,
-    derandomize=True,
-    database=None,
-    suppress_health_check=[HealthCheck.too_slow, HealthCheck.function_scoped_fixture],
-)
-@given(seed=st.integers(0, 100_000), late=st.sampled_from([0, 3]))
+def _random_trees(test):
+    """The random trees both properties read: a seed, and a log from the start or a
+    later tick (12 examples, derandomized)."""
+    return settings(
+        max_examples=12,
+        deadline=None,
+        derandomize=True,
+        database=None,
+        suppress_health_check=[HealthCheck.too_slow, HealthCheck.function_scoped_fixture],
+    )(given(seed=st.integers(0, 100_000), late=st.sampled_from([0, 3]))(test))
+
+
+@_random_trees
 def test_anonymous_random_trees_are_matched_or_refused_never_misread(tmp_path, seed, late):
     """The worst case: random BT.CPP 4 trees whose every node is unnamed (BT.CPP logs
     its type), from the start or from a later tick. Each reading is the truth, or the
@@ -224,14 +229,7 @@ def test_an_ancestor_the_log_never_names_was_running_from_its_first_entry(tmp_pa
     assert f"Note: {root.description!r}: never in the log" in story.stdout
 
 
-@settings(
-    max_examples=12,
-    deadline=None,
-    derandomize=True,
-    database=None,
-    suppress_health_check=[HealthCheck.too_slow, HealthCheck.function_scoped_fixture],
-)
-@given(seed=st.integers(0, 100_000), late=st.sampled_from([0, 3]))
+@_random_trees
 def test_deciding_as_the_log_is_read_changes_no_reading_and_no_refusal(tmp_path, seed, late):
     """The anonymous random trees again (readings and refusals both), each read deciding
     the readings' common choices as early as it can (every entry or two) and never
