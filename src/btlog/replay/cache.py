@@ -243,13 +243,13 @@ def _alive(pid: int) -> bool:
 def build(path: str, cache: Path, snapshot_every: int) -> ingestion.IngestReport:
     """Ingest ``path``'s tables into a new cache file, moved into place when complete.
 
-    The status changes go to a Parquet file beside it (``transitions_path``), which the
-    cache's ``transitions`` view reads: written beside the scan, they cost a first answer
-    about a 100M-event run 4 s instead of DuckDB's 19 s insert. The other tables are
-    loaded straight into the file. The snapshots are not built here: a first question in
-    SQL needs only the tables; the first state asked for builds them
-    (``build_snapshots``). The transitions file is moved into place first, so a cache
-    in place always has its file.
+    The status changes go to Parquet files beside it, one per part of the recording read
+    (``transitions_path``), which the cache's ``transitions`` view reads: written beside
+    the scan, they cost a first answer about a 100M-event run 4 s instead of DuckDB's
+    19 s insert. The other tables are loaded straight into the file. The snapshots are
+    not built here: a first question in SQL needs only the tables; the first state asked
+    for builds them (``build_snapshots``). The transitions files are moved into place
+    first, so a cache in place always has its files.
     """
     from btlog.replay import ingest as ingestion
 

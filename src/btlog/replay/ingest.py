@@ -26,7 +26,7 @@ import btlog
 from btlog.record import format as fmt
 from btlog.record.reader import RecordingError, decode_metadata, read_metadata, tree_of
 from btlog.record.walk import MAGIC
-from btlog.replay.load import Destination, Loader, load_other_messages
+from btlog.replay.load import Destination, load_other_messages, load_part
 from btlog.replay.run_tables import (
     Extent,
     extent_of,
@@ -35,7 +35,7 @@ from btlog.replay.run_tables import (
     seq_space,
     short_run_id,
 )
-from btlog.replay.scan import Collected, McapScan, warnings_of
+from btlog.replay.scan import Collected, warnings_of
 from btlog.replay.snapshots import DEFAULT_SNAPSHOT_EVERY, build_snapshots, snapshot_interval
 from btlog.replay.tables import (
     INGEST_VERSION,
@@ -220,14 +220,16 @@ def _read_rows(
     """``_load_rows``, in the parts ``parts.plan`` gives (one if ``whole``); ``Disagree``
     when the parts' reads do not agree (the files of the parts but the first removed)."""
     to = Destination(run_id)
-    first, scans, files = McapScan(name, lambda batch: None), [], []
+    start, stop = len(MAGIC), None  # the caller's part: the whole file unless cut
+    scans: list = []
+    files: list[Path] = []
     try:
         with tempfile.TemporaryDirectory(prefix="btlog-ingest-") as folder:
             if transitions_files is not None:
                 from btlog.replay import parts
                 from btlog.replay.transitions_file import TransitionsFile
 
-                plan = [parts.Part(len(MAGIC), None)] if whole else parts.plan(name)
+                plan = [parts.Part(start, stop)] if whole else parts.plan(name)
                 files = [transitions_files(number) for number in range(len(plan))]
                 scans = [
                     parts.PartScan(name, part, run_id, files[n], Path(folder) / f"part-{n}")
@@ -235,24 +237,9 @@ def _read_rows(
                     if n
                 ]
                 to.transitions = TransitionsFile(files[0])
-                first = McapScan(name, lambda batch: None, plan[0].start, plan[0].stop)
-            loader = Loader(con, to, Path(folder))
-            first.on_batch = loader.submit
-            try:
-                collected = first.run()
-                loader.finish()
-                others = [scan.rows() for scan in scans]
-            except (ValueError, TypeError, IndexError) as error:
-                loader.close()
-                if isinstance(error, RecordingError):
-                    raise
-                raise RecordingError(
-                    f"{name}: rows that do not follow the btlog format: "
-                    f"{type(error).__name__}: {error}"
-                ) from None
-            except BaseException:
-                loader.close()
-                raise
+                start, stop = plan[0].start, plan[0].stop
+            collected = load_part(con, to, name, Path(folder), start, stop)
+            others = [scan.rows() for scan in scans]
             if others and not parts.agree([collected, *(rows.collected for rows in others)]):
                 for file in files[1:]:
                     file.unlink(missing_ok=True)

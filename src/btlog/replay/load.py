@@ -31,8 +31,8 @@ import pyarrow.compute as pa_compute
 import pyarrow.csv as pa_csv
 
 from btlog.record import format as fmt
-from btlog.record.walk import RecordingError
-from btlog.replay.scan import Collected, Columns, RowBatch
+from btlog.record.walk import MAGIC, RecordingError
+from btlog.replay.scan import Collected, Columns, McapScan, RowBatch
 from btlog.replay.tables import identifier, insert_arrow, one_row
 from btlog.status import STATUS_NAMES
 
@@ -344,6 +344,35 @@ def _insert_rows(
         "ticks": _insert_tick_rows,
     }
     inserts[table](con, to, rows)
+
+
+def load_part(
+    con: duckdb.DuckDBPyConnection,
+    to: Destination,
+    path: str,
+    folder: Path,
+    start: int = len(MAGIC),
+    stop: int | None = None,
+) -> Collected:
+    """Scan the records of ``path`` from byte ``start`` to ``stop`` (the whole file by
+    default; a part, ``btlog.replay.parts``), loading its bulk rows into ``to`` as the
+    walk goes (``folder``: the loader's temporary files); what else the scan found. Rows
+    that do not follow the format are a ``RecordingError`` naming the file."""
+    loader = Loader(con, to, folder)
+    try:
+        collected = McapScan(path, loader.submit, start, stop).run()
+        loader.finish()
+    except (ValueError, TypeError, IndexError) as error:
+        loader.close()
+        if isinstance(error, RecordingError):
+            raise
+        raise RecordingError(
+            f"{path}: rows that do not follow the btlog format: {type(error).__name__}: {error}"
+        ) from None
+    except BaseException:
+        loader.close()
+        raise
+    return collected
 
 
 def load_other_messages(

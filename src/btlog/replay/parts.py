@@ -31,8 +31,8 @@ from btlog.errors import one_line
 from btlog.record.reader import seq_of
 from btlog.record.walk import MAGIC, RecordingError, chunk_starts, mapped, summary_message_count
 from btlog.replay.connections import connect
-from btlog.replay.load import Destination, Loader
-from btlog.replay.scan import Collected, McapScan
+from btlog.replay.load import Destination, load_part
+from btlog.replay.scan import Collected
 from btlog.replay.tables import create_schema, literal
 from btlog.replay.transitions_file import TransitionsFile
 
@@ -111,13 +111,7 @@ def scan_part(path: str, part: Part, run_id: str, transitions: Path, folder: Pat
         create_schema(con)
         to = Destination(run_id, TransitionsFile(transitions))
         try:
-            loader = Loader(con, to, folder)
-            try:
-                collected = McapScan(path, loader.submit, part.start, part.stop).run()
-                loader.finish()
-            except BaseException:
-                loader.close()
-                raise
+            collected = load_part(con, to, path, folder, part.start, part.stop)
         finally:
             if to.transitions is not None:
                 to.transitions.close()
