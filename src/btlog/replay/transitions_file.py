@@ -1,18 +1,19 @@
-"""A cached run's status changes as a Parquet file, written at the speed of the scan.
+"""A cached run's status changes as Parquet files, written at the speed of the scan.
 
 The ``transitions`` table is nearly all of a long run's rows (99M of a 100M-event day).
 Inserting them into DuckDB's own storage runs on one core and was what a first answer
 waited for: 19 s of a 37.6 s first ``ask`` at 99M events. Written as Parquet instead, by
 Arrow's C++ writer in the loader's worker thread (which releases the GIL, so it runs
-beside the scan), they cost about 4 s of CPU on the other core, and DuckDB reads the
-file as fast as its own tables: each row group's min and max of ``seq`` skip the rest
-of the run for a moment's block, and a filter on a status skips the row groups without
-it. So a cache's ``transitions`` is a view over the file beside it
-(``btlog.replay.tables.transitions_views``); the other tables stay DuckDB's.
+beside the scan), they cost about 2.5 s of CPU beside it, and DuckDB reads the
+files nearly as fast as its own tables: each row group's min and max of ``seq`` skip
+the rest of the run for a moment's block, and a filter on a status code skips the row
+groups without it. So a cache's ``transitions`` is a view over its files, one per part
+of the recording read (``btlog.replay.tables.transitions_views``, ``btlog.replay.parts``);
+the other tables stay DuckDB's.
 
-Encodings: ``seq``, ``t_ns`` and ``tick`` as deltas (they grow by small steps), ``uid``
-and the statuses as dictionaries, the statuses as their codes (``btlog.status``), the
-pages LZ4-compressed: a 99M-event day of a 60-action tree takes 14 MB.
+Encodings: ``seq``, ``t_ns`` and ``tick`` as deltas (they grow by small steps), the
+statuses as their codes (``btlog.status``), no dictionaries (a quarter less writing),
+the pages LZ4-compressed: a 99M-event day of a 60-action tree takes 20 MB.
 """
 
 from __future__ import annotations
